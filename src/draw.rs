@@ -1,0 +1,130 @@
+//! What the GPU stage draws for one frame: vertex lists already split into geometry above the
+//! water (true positions) and under it (virtual positions with true attributes), the membrane,
+//! and the frame's camera, lights and water optics. Built on the CPU by [`crate::frame`] from the
+//! refraction stage's output; consumed only by [`crate::gpu`]. Plain data: no wgpu types here.
+
+use bytemuck::{Pod, Zeroable};
+use glam::Vec3;
+
+use crate::camera::Camera;
+
+/// Bits of the per-triangle flag mask (the EXR `flags.*` channels are these bits, one channel each).
+pub mod flag_bits {
+    /// A vertex of the triangle is seen through more than one facet (zone of convergence).
+    pub const CONVERGENCE: u32 = 1;
+    /// Some under-water vertices of the triangle have an image and some have none.
+    pub const BOUNDARY: u32 = 2;
+    /// A vertex's chosen image jumped since the previous frame.
+    pub const POPPING: u32 = 4;
+    /// A vertex's image comes from an extrapolated (back-facing or TIR) refraction ray.
+    pub const EXTRAPOLATED: u32 = 8;
+}
+
+/// A vertex drawn at its true position (geometry on the eye's side of the water).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct TrueVertex {
+    pub position: [f32; 3],
+    pub normal: [f32; 3],
+    pub uv: [f32; 2],
+    /// Index into [`FrameDraw::materials`].
+    pub material: u32,
+}
+
+/// A vertex of under-water geometry: rasterised at `virtual_position`, shaded with the true
+/// attributes. Under-water triangles are drawn unindexed (three vertices each) so every vertex can
+/// carry its triangle's flags.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct VirtualVertex {
+    pub virtual_position: [f32; 3],
+    pub true_position: [f32; 3],
+    pub normal: [f32; 3],
+    pub uv: [f32; 2],
+    pub material: u32,
+    /// True path length in water `|V - S|` in metres (Beer-Lambert along the view path).
+    pub water_path_m: f32,
+    /// The triangle's [`flag_bits`].
+    pub flags: u32,
+}
+
+/// A membrane vertex: the faceted water surface with its analytic normal (pointing up, to the air).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct MembraneVertex {
+    pub position: [f32; 3],
+    pub normal: [f32; 3],
+}
+
+/// Material as the GPU sees it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DrawMaterial {
+    /// Index into the renderer's uploaded texture list.
+    pub texture: u32,
+    pub tint_linear: Vec3,
+}
+
+/// Sky, sun and ambient light (linear RGB radiance units, arbitrary but consistent scale).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Lighting {
+    pub sky_zenith_linear: Vec3,
+    pub sky_horizon_linear: Vec3,
+    /// Unit vector from the scene toward the sun.
+    pub sun_direction: Vec3,
+    pub sun_color_linear: Vec3,
+    /// Angular diameter of the sun disk seen in the sky and its reflections.
+    pub sun_size_deg: f32,
+    /// Ambient (sky) light on surfaces.
+    pub ambient_linear: Vec3,
+}
+
+/// Optical properties of the water for shading.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WaterOptics {
+    /// Index of refraction above (the eye's side, air) and below (water).
+    pub n_above: f32,
+    pub n_below: f32,
+    /// Beer-Lambert absorption coefficients per channel, 1/m.
+    pub absorption_per_m: Vec3,
+    /// Colour light takes on when scattered back by deep water (what a fully absorbed path shows).
+    pub scatter_color_linear: Vec3,
+    /// Height of the mean (flat) water plane, metres; sunlight is refracted through it.
+    pub mean_level_m: f32,
+}
+
+/// Everything the GPU needs to draw one frame.
+#[derive(Clone, Debug, Default)]
+pub struct FrameDraw {
+    pub above_vertices: Vec<TrueVertex>,
+    pub above_indices: Vec<u32>,
+    /// Unindexed triangle list (length a multiple of 3).
+    pub under_vertices: Vec<VirtualVertex>,
+    pub membrane_vertices: Vec<MembraneVertex>,
+    pub membrane_indices: Vec<u32>,
+    pub materials: Vec<DrawMaterial>,
+}
+
+/// The per-frame constants of a render: camera, light, water.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FrameView {
+    pub camera: Camera,
+    pub lighting: Lighting,
+    pub water: WaterOptics,
+}
+
+/// What the GPU stage returns for one frame, read back to the CPU, row-major, top row first.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct RenderedFrame {
+    pub width: u32,
+    pub height: u32,
+    /// Linear HDR beauty, alpha 1 where anything (sky included) was drawn.
+    pub beauty_rgba: Vec<[f32; 4]>,
+    /// Distance from the eye to the first surface the pixel's sight ray meets (the water surface for
+    /// pixels seen through water), metres; `f32::INFINITY` for sky.
+    pub distance_m: Vec<f32>,
+    /// True world position of what the pixel shows (for pixels seen through water: the true,
+    /// under-water point, not its virtual image); NaN for sky and for water with nothing behind it.
+    pub position: Vec<[f32; 3]>,
+    /// [`flag_bits`] of the virtual triangle seen in each pixel, 0 elsewhere.
+    pub flags: Vec<u32>,
+}

@@ -1,0 +1,27 @@
+//! snell: objects seen through moving water, rendered with the geometric refraction method of
+//! Schmidt's thesis (refraction cells and virtual vertices), done exactly and flagged where it fails.
+//!
+//! The stages, in the order a frame flows through them:
+//! 0. [`scene`]      — scene file (TOML) -> validated [`scene::Scene`]; built-in primitives -> world meshes, textures.
+//! 1. [`timeline`]   — frame <-> time, camera keyframe tracks.
+//! 2. [`water`]      — the water membrane at time t: analytic waves, height field, triangulated grid.
+//! 3. [`refraction`] — refraction rays, cells, sight-facet search, virtual vertices, flags (pure CPU, rayon).
+//! 4. [`gpu`]        — wgpu passes: true geometry, stencil of visible water, virtual geometry, Fresnel sky.
+//! 5. [`output`]     — multi-layer OpenEXR frames, per-frame report, tone-mapped previews, image comparison.
+//!
+//! [`frame`] ties the stages together: one `render_frame` entry point used identically by the CLI
+//! and by the tests.
+
+pub mod camera;
+pub mod draw;
+pub mod frame;
+pub mod gpu;
+pub mod mesh;
+pub mod output;
+pub mod refraction;
+pub mod scene;
+pub mod timeline;
+pub mod water;
+
+/// The version written into every EXR header and report.
+pub const VERSION: &str = env!("CARGO_PKG_VERSION");

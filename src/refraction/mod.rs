@@ -1,0 +1,4 @@
+//! Stage 3, refraction: per membrane vertex the refraction ray and Fresnel weight; refraction cells;
+//! the sight-facet search (accelerated, with a brute-force oracle) returning every image of a point;
+//! virtual vertices, triangles split at the water line, and the per-frame failure flags.
+//! Pure CPU (rayon): no wgpu, no I/O.

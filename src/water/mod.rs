@@ -1,0 +1,42 @@
+//! Stage 2, water: the analytic wave field (a sum of height waves, y = h(x, z, t)), the height-field
+//! view of it at one instant, and the triangulated membrane grid with analytic normals.
+//! Receives the scene's water description and a time; returns a [`Membrane`] and a [`HeightField`].
+//! OWNER: water/timeline helper. Signatures below are the contract used by other stages.
+
+use glam::{DVec3, Vec3};
+
+/// A surface given as a height field over the horizontal plane. The exact surface: kept beside the
+/// faceted membrane for exact solves, splitting triangles at the water line and the reference tracer.
+pub trait HeightField: Sync {
+    /// Height of the surface at (x, z), metres.
+    fn height(&self, x: f64, z: f64) -> f64;
+    /// (dh/dx, dh/dz) at (x, z).
+    fn gradient(&self, x: f64, z: f64) -> (f64, f64);
+    /// Unit normal pointing up (to the air side): normalize(-dh/dx, 1, -dh/dz).
+    fn normal(&self, x: f64, z: f64) -> DVec3 {
+        let (gx, gz) = self.gradient(x, z);
+        DVec3::new(-gx, 1.0, -gz).normalize()
+    }
+}
+
+/// The rectangle of the horizontal plane the membrane covers and its grid resolution (cells).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MembraneGrid {
+    pub min_x: f64,
+    pub min_z: f64,
+    pub max_x: f64,
+    pub max_z: f64,
+    pub cells_x: u32,
+    pub cells_z: u32,
+}
+
+/// The faceted water surface at one instant: (cells_x + 1) * (cells_z + 1) vertices, row-major in z
+/// then x (index = iz * (cells_x + 1) + ix), two triangles per cell, counter-clockwise seen from above.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Membrane {
+    pub grid: MembraneGrid,
+    pub positions: Vec<Vec3>,
+    /// Analytic unit normals pointing up.
+    pub normals: Vec<Vec3>,
+    pub triangles: Vec<[u32; 3]>,
+}
