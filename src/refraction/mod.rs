@@ -2,3 +2,11 @@
 //! the sight-facet search (accelerated, with a brute-force oracle) returning every image of a point;
 //! virtual vertices, triangles split at the water line, and the per-frame failure flags.
 //! Pure CPU (rayon): no wgpu, no I/O.
+
+pub mod cells;
+pub mod flags;
+pub mod flat;
+pub mod rays;
+pub mod search;
+pub mod split;
+pub mod virtual_geometry;
