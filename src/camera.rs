@@ -17,12 +17,13 @@ pub struct Camera {
 
 impl Camera {
     pub fn view_from_world(&self) -> Mat4 {
-        Mat4::look_at_rh(self.eye, self.target, self.up)
+        glam::camera::rh::view::look_at_mat4(self.eye, self.target, self.up)
     }
 
-    /// Right-handed perspective with depth in [0, 1] (wgpu's clip space).
+    /// Right-handed perspective with depth in [0, 1] and y up in NDC: wgpu's clip space, which is
+    /// glam's "directx" convention.
     pub fn clip_from_view(&self, aspect: f32) -> Mat4 {
-        Mat4::perspective_rh(self.fov_y_deg.to_radians(), aspect, NEAR_M, FAR_M)
+        glam::camera::rh::proj::directx::perspective(self.fov_y_deg.to_radians(), aspect, NEAR_M, FAR_M)
     }
 
     pub fn clip_from_world(&self, width: u32, height: u32) -> Mat4 {
