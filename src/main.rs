@@ -1,1 +1,126 @@
-fn main() {}
+//! The `snell` command line: thin wrappers over the library's stages. anyhow lives only here.
+//! Exit codes: 0 success, 2 bad input (scene, arguments, output path), 1 anything else.
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+use snell::frame::{self, FrameRange, RenderJob, SnellError};
+
+#[derive(Parser)]
+#[command(
+    name = "snell",
+    version,
+    about = "Render objects seen through moving water, with geometric refraction you can trust",
+    long_about = "snell renders animated scenes of objects seen through a moving water surface. \
+For every frame it simulates the water, computes each under-water vertex's virtual position (where \
+the eye sees it through the refracting surface), renders with wgpu and writes multi-layer OpenEXR \
+frames plus a per-frame report of where the method is known to be wrong (convergence zones, \
+boundary triangles, popping, extrapolated rays).\n\n\
+Start with:  snell render scenes/pool.toml"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Render a scene's frames to OpenEXR (beauty, Z, true position P, flag masks) and a report.
+    ///
+    /// Frames land in DIR/<scene>.<frame>.exr (4-digit frame numbers); DIR/report.jsonl gets one JSON
+    /// line per frame with flag counts and seconds per stage. Each frame is written under a temporary
+    /// name and renamed, so an interrupted render never leaves a truncated frame.
+    Render {
+        /// The scene file (TOML), e.g. scenes/pool.toml.
+        scene: PathBuf,
+        /// Frames to render: "A-B" or a single frame "N" (default: the scene's whole timeline).
+        #[arg(long, value_name = "A-B")]
+        frames: Option<String>,
+        /// Output directory (default: output/<scene name>/).
+        #[arg(long, value_name = "DIR")]
+        out: Option<PathBuf>,
+        /// Image size in pixels.
+        #[arg(long, value_name = "WxH", default_value = "1280x720")]
+        size: String,
+        /// Also write a tone-mapped PNG next to each EXR.
+        #[arg(long)]
+        png: bool,
+    },
+    /// Print what a scene contains (objects, vertices, triangles, membrane, frame range) and the GPU
+    /// adapter a render would use.
+    Info {
+        /// The scene file (TOML).
+        scene: PathBuf,
+    },
+    /// Measure speed: refraction search throughput and speed-up over brute force, and per-stage
+    /// frame times of a scene (default scenes/pool.toml) at 1280x720.
+    Bench {
+        /// Print the figures as one JSON object.
+        #[arg(long)]
+        json: bool,
+        /// Scene whose frame times are measured.
+        #[arg(long, default_value = "scenes/pool.toml")]
+        scene: PathBuf,
+        /// Frames rendered for the frame-time figures (after one warm-up frame).
+        #[arg(long, default_value_t = 8)]
+        frames: u32,
+    },
+}
+
+fn main() -> ExitCode {
+    env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("error")).init();
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Render { scene, frames, out, size, png } => render(&scene, frames.as_deref(), out, &size, png),
+        Command::Info { scene } => info(&scene),
+        Command::Bench { json, scene, frames } => bench(json, &scene, frames),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(error) => {
+            eprintln!("error: {error}");
+            if error.is_bad_input() {
+                ExitCode::from(2)
+            } else {
+                ExitCode::from(1)
+            }
+        }
+    }
+}
+
+fn render(scene_path: &Path, frames: Option<&str>, out: Option<PathBuf>, size: &str, png: bool) -> Result<(), SnellError> {
+    let (width, height) = frame::parse_size(size)?;
+    let job = RenderJob::prepare(scene_path)?;
+    let range = match frames {
+        Some(text) => FrameRange::parse(text, job.timeline())?,
+        None => FrameRange::whole(job.timeline()),
+    };
+    let out_dir = out.unwrap_or_else(|| PathBuf::from("output").join(job.scene_name()));
+    let summary = job.render_to_dir(range, width, height, &out_dir, png, true)?;
+    eprintln!(
+        "rendered {} frame(s) of {} at {width}x{height} into {} ({:.2} s per frame)",
+        summary.frames,
+        job.scene_name(),
+        out_dir.display(),
+        summary.secs_per_frame
+    );
+    Ok(())
+}
+
+fn info(scene_path: &Path) -> Result<(), SnellError> {
+    let job = RenderJob::prepare(scene_path)?;
+    print!("{}", job.describe());
+    Ok(())
+}
+
+fn bench(json: bool, scene_path: &Path, frames: u32) -> Result<(), SnellError> {
+    let figures = snell::frame::bench::run(scene_path, frames)?;
+    if json {
+        println!("{}", serde_json::to_string_pretty(&figures).expect("figures serialise"));
+    } else {
+        print!("{}", figures.to_text());
+    }
+    Ok(())
+}

@@ -1,0 +1,416 @@
+//! One frame, end to end: scene + frame number -> water membrane -> refraction (virtual geometry,
+//! flags) -> GPU passes -> layers, and the loop that renders a range of frames into EXR files and
+//! the report. [`RenderJob`] is the single entry point used by the CLI and by the tests, so both
+//! render exactly the same way.
+
+pub mod bench;
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+
+use crate::camera::Camera;
+use crate::draw::{DrawMaterial, FrameDraw, FrameView, MembraneVertex, RenderedFrame};
+use crate::gpu::{GpuError, Renderer};
+use crate::mesh::{Object, Texture};
+use crate::output::OutputError;
+use crate::refraction::flags::{FlagCounts, CONVERGENCE_POLICY};
+use crate::refraction::search::{CellMode, RefractionField, RefractionSetup};
+use crate::refraction::virtual_geometry::{self, VertexTracking};
+use crate::scene::{Scene, SceneError};
+use crate::timeline::{CameraTrack, Timeline};
+use crate::water::{build_membrane, HeightField, Membrane, Wave, WaveField};
+
+/// Everything that can stop a render, sorted into "your input is wrong" (exit 2) and the rest.
+#[derive(Debug, thiserror::Error)]
+pub enum SnellError {
+    #[error("{0}")]
+    Scene(#[from] SceneError),
+    #[error("{0}")]
+    Output(#[from] OutputError),
+    #[error("{0}")]
+    Gpu(#[from] GpuError),
+    /// A command-line argument that cannot be used; the message says which and what to write.
+    #[error("{0}")]
+    Argument(String),
+    /// The scene is valid as a file but a frame cannot be rendered from it.
+    #[error("{scene}: frame {frame}: {problem}")]
+    Frame { scene: PathBuf, frame: u32, problem: String },
+}
+
+impl SnellError {
+    /// Whether the user's input (scene, arguments, output location) is at fault: exit code 2.
+    pub fn is_bad_input(&self) -> bool {
+        match self {
+            SnellError::Scene(_) | SnellError::Argument(_) | SnellError::Frame { .. } => true,
+            SnellError::Output(error) => error.is_bad_input(),
+            SnellError::Gpu(_) => false,
+        }
+    }
+}
+
+/// `WxH`, e.g. `1280x720`.
+pub fn parse_size(text: &str) -> Result<(u32, u32), SnellError> {
+    let bad = || {
+        SnellError::Argument(format!(
+            "--size {text:?}: expected WIDTHxHEIGHT in pixels, each between 1 and 16384, e.g. --size 1280x720"
+        ))
+    };
+    let (w, h) = text.trim().split_once(['x', 'X']).ok_or_else(bad)?;
+    let width: u32 = w.trim().parse().map_err(|_| bad())?;
+    let height: u32 = h.trim().parse().map_err(|_| bad())?;
+    if !(1..=16384).contains(&width) || !(1..=16384).contains(&height) {
+        return Err(bad());
+    }
+    Ok((width, height))
+}
+
+/// An inclusive range of frame numbers inside a scene's timeline.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FrameRange {
+    pub first: u32,
+    pub last: u32,
+}
+
+impl FrameRange {
+    pub fn whole(timeline: &Timeline) -> Self {
+        FrameRange { first: timeline.first_frame, last: timeline.last_frame }
+    }
+
+    /// `"A-B"` or `"N"`, checked against the timeline.
+    pub fn parse(text: &str, timeline: &Timeline) -> Result<Self, SnellError> {
+        let (first, last) = crate::timeline::parse_frame_range(text)
+            .map_err(|e| SnellError::Argument(format!("--frames {text:?}: {e}")))?;
+        if first < timeline.first_frame || last > timeline.last_frame {
+            return Err(SnellError::Argument(format!(
+                "--frames {text:?}: the scene's timeline runs from frame {} to {}; choose frames inside it",
+                timeline.first_frame, timeline.last_frame
+            )));
+        }
+        Ok(FrameRange { first, last })
+    }
+
+    pub fn frames(&self) -> impl Iterator<Item = u32> {
+        self.first..=self.last
+    }
+
+    pub fn len(&self) -> u32 {
+        self.last - self.first + 1
+    }
+
+    pub fn is_empty(&self) -> bool {
+        false
+    }
+}
+
+/// The CPU side of one frame: what the GPU will draw, and the refraction stage's verdicts.
+pub struct RefractedFrame {
+    pub frame: u32,
+    pub time_secs: f64,
+    pub camera: Camera,
+    pub draw: FrameDraw,
+    pub view: FrameView,
+    pub counts: FlagCounts,
+    /// Chosen images per vertex, for the next frame's popping test.
+    pub tracking: VertexTracking,
+    pub stage_secs: BTreeMap<String, f64>,
+}
+
+/// A loaded scene, ready to render any of its frames.
+pub struct RenderJob {
+    pub scene: Scene,
+    pub objects: Vec<Object>,
+    pub textures: Vec<Texture>,
+    pub waves: WaveField,
+    pub camera_track: CameraTrack,
+    /// Heights the refraction search must cover: every object vertex that can be under water.
+    query_y_range: (f32, f32),
+}
+
+/// What a finished render reports to the CLI.
+pub struct RenderSummary {
+    pub frames: u32,
+    pub secs_per_frame: f64,
+}
+
+impl RenderJob {
+    /// Loads and validates the scene and builds its static geometry and textures.
+    pub fn prepare(scene_path: &Path) -> Result<Self, SnellError> {
+        let scene = Scene::load(scene_path)?;
+        Self::from_scene(scene)
+    }
+
+    pub fn from_scene(scene: Scene) -> Result<Self, SnellError> {
+        let (objects, textures) = scene.build_objects()?;
+        let waves = WaveField {
+            level_m: scene.water.level_m,
+            waves: scene.water.waves.iter().map(|w| w.to_wave()).collect::<Vec<Wave>>(),
+        };
+        let camera_track = CameraTrack::new(scene.camera_keys.clone());
+        let amplitude_sum: f64 = waves.waves.iter().map(|w| w.amplitude_m.abs()).sum();
+        let top = (waves.level_m + amplitude_sum) as f32 + 1e-3;
+        let bottom = objects
+            .iter()
+            .flat_map(|o| o.mesh.positions.iter().map(|p| p.y))
+            .fold(top, f32::min)
+            - 1e-3;
+        Ok(RenderJob { scene, objects, textures, waves, camera_track, query_y_range: (bottom, top) })
+    }
+
+    pub fn scene_name(&self) -> &str {
+        &self.scene.name
+    }
+
+    pub fn timeline(&self) -> &Timeline {
+        &self.scene.timeline
+    }
+
+    pub fn camera_at(&self, frame: u32) -> Camera {
+        self.camera_track.sample(self.scene.timeline.time_secs(frame))
+    }
+
+    /// CPU stages of a frame: water, membrane, refraction, virtual geometry, flags. `previous` is the
+    /// tracking of frame - 1 (for popping); pass `None` only for the timeline's first frame.
+    pub fn refract(
+        &self,
+        frame: u32,
+        width: u32,
+        height: u32,
+        previous: Option<&VertexTracking>,
+    ) -> Result<RefractedFrame, SnellError> {
+        let mut stage_secs = BTreeMap::new();
+        let time_secs = self.scene.timeline.time_secs(frame);
+        let camera = self.camera_track.sample(time_secs);
+        let surface = self.waves.at(time_secs);
+        let water_at_eye = surface.height(camera.eye.x as f64, camera.eye.z as f64);
+        if (camera.eye.y as f64) <= water_at_eye + 0.01 {
+            return Err(SnellError::Frame {
+                scene: self.scene.path.clone(),
+                frame,
+                problem: format!(
+                    "the camera's eye ({:.3}, {:.3}, {:.3}) is at or under the water surface (height {:.3} m there); \
+                     snell renders from above the water: raise the camera keyframes' eye",
+                    camera.eye.x, camera.eye.y, camera.eye.z, water_at_eye
+                ),
+            });
+        }
+
+        let clock = Instant::now();
+        let membrane = build_membrane(&surface, &self.scene.water.grid());
+        stage_secs.insert("water".to_string(), clock.elapsed().as_secs_f64());
+
+        let clock = Instant::now();
+        let setup = RefractionSetup {
+            eye: camera.eye,
+            n_above: self.scene.water.n_above as f32,
+            n_below: self.scene.water.n_below as f32,
+            cell_mode: CellMode::EqualT,
+        };
+        let field = RefractionField::build(&membrane, &surface, setup, self.query_y_range);
+        let geometry = virtual_geometry::refract_objects(&field, &camera, width, height, &self.objects, previous);
+        stage_secs.insert("refraction".to_string(), clock.elapsed().as_secs_f64());
+
+        let draw = FrameDraw {
+            above_vertices: geometry.above_vertices,
+            above_indices: geometry.above_indices,
+            under_vertices: geometry.under_vertices,
+            membrane_vertices: membrane_vertices(&membrane),
+            membrane_indices: membrane.triangles.iter().flatten().copied().collect(),
+            materials: self
+                .objects
+                .iter()
+                .map(|o| DrawMaterial { texture: o.material.texture, tint_linear: o.material.tint_linear })
+                .collect(),
+        };
+        let view = FrameView { camera, lighting: self.scene.lighting(), water: self.scene.water_optics() };
+        Ok(RefractedFrame {
+            frame,
+            time_secs,
+            camera,
+            draw,
+            view,
+            counts: geometry.counts,
+            tracking: geometry.tracking,
+            stage_secs,
+        })
+    }
+
+    /// The tracking state popping compares against for `frame`: frame - 1 recomputed (CPU only),
+    /// or nothing at the start of the timeline. A frame rendered alone is thus judged exactly as
+    /// in a sequence.
+    pub fn previous_tracking(&self, frame: u32, width: u32, height: u32) -> Result<Option<VertexTracking>, SnellError> {
+        if frame <= self.scene.timeline.first_frame {
+            return Ok(None);
+        }
+        Ok(Some(self.refract(frame - 1, width, height, None)?.tracking))
+    }
+
+    /// Renders one frame on `renderer` (textures must have been set with [`Self::upload_textures`]).
+    pub fn render_refracted(
+        &self,
+        renderer: &mut Renderer,
+        refracted: &mut RefractedFrame,
+        width: u32,
+        height: u32,
+    ) -> Result<RenderedFrame, SnellError> {
+        let clock = Instant::now();
+        let rendered = renderer.render(&refracted.draw, &refracted.view, width, height)?;
+        refracted.stage_secs.insert("render".to_string(), clock.elapsed().as_secs_f64());
+        Ok(rendered)
+    }
+
+    pub fn upload_textures(&self, renderer: &mut Renderer) -> Result<(), SnellError> {
+        renderer.set_textures(&self.textures)?;
+        Ok(())
+    }
+
+    /// Renders a single frame alone (popping judged against frame - 1 recomputed).
+    pub fn render_frame(
+        &self,
+        renderer: &mut Renderer,
+        frame: u32,
+        width: u32,
+        height: u32,
+    ) -> Result<(RefractedFrame, RenderedFrame), SnellError> {
+        self.upload_textures(renderer)?;
+        let previous = self.previous_tracking(frame, width, height)?;
+        let mut refracted = self.refract(frame, width, height, previous.as_ref())?;
+        let rendered = self.render_refracted(renderer, &mut refracted, width, height)?;
+        Ok((refracted, rendered))
+    }
+
+    /// Renders `range` into `out_dir` (EXR per frame, report.jsonl, optional PNGs), with a progress bar.
+    pub fn render_to_dir(
+        &self,
+        range: FrameRange,
+        width: u32,
+        height: u32,
+        out_dir: &Path,
+        write_png: bool,
+        progress: bool,
+    ) -> Result<RenderSummary, SnellError> {
+        crate::output::create_output_dir(out_dir)?;
+        let mut renderer = Renderer::new()?;
+        self.upload_textures(&mut renderer)?;
+        let mut report = crate::output::report::ReportWriter::create(out_dir)?;
+        let bar = progress_bar(range.len() as u64, progress);
+        let started = Instant::now();
+        let mut previous = self.previous_tracking(range.first, width, height)?;
+        for frame in range.frames() {
+            bar.set_message(format!("frame {frame}"));
+            let mut refracted = self.refract(frame, width, height, previous.as_ref())?;
+            let rendered = self.render_refracted(&mut renderer, &mut refracted, width, height)?;
+            let clock = Instant::now();
+            let path = crate::output::exr::frame_path(out_dir, &self.scene.name, frame);
+            crate::output::exr::write_frame_exr(&path, &rendered, &self.frame_meta(&refracted))?;
+            if write_png {
+                let png = crate::output::tonemap::tonemap_srgb8(&rendered, 0.0);
+                crate::output::tonemap::save_png_atomic(&png, &path.with_extension("png"))?;
+            }
+            refracted.stage_secs.insert("write".to_string(), clock.elapsed().as_secs_f64());
+            report.append(&self.frame_report(&refracted, width, height))?;
+            previous = Some(refracted.tracking);
+            bar.inc(1);
+        }
+        bar.finish_and_clear();
+        let secs = started.elapsed().as_secs_f64();
+        Ok(RenderSummary { frames: range.len(), secs_per_frame: secs / range.len() as f64 })
+    }
+
+    pub fn frame_meta(&self, refracted: &RefractedFrame) -> crate::output::exr::FrameMeta {
+        crate::output::exr::FrameMeta {
+            scene_name: self.scene.name.clone(),
+            frame: refracted.frame,
+            time_secs: refracted.time_secs,
+            camera: refracted.camera,
+            method: "virtual-vertices/equal-t".to_string(),
+            version: crate::VERSION.to_string(),
+            extra: vec![
+                ("snell.convergencePolicy".to_string(), CONVERGENCE_POLICY.to_string()),
+                ("snell.scene".to_string(), self.scene.path.display().to_string()),
+            ],
+        }
+    }
+
+    pub fn frame_report(&self, refracted: &RefractedFrame, width: u32, height: u32) -> crate::output::report::FrameReport {
+        crate::output::report::FrameReport {
+            frame: refracted.frame,
+            time_secs: refracted.time_secs,
+            convergence_policy: CONVERGENCE_POLICY.to_string(),
+            counts: serde_json::to_value(refracted.counts).expect("flag counts serialise"),
+            stage_secs: refracted.stage_secs.clone(),
+            size: [width, height],
+            method: "virtual-vertices/equal-t".to_string(),
+        }
+    }
+
+    /// A human-readable description for `snell info`.
+    pub fn describe(&self) -> String {
+        let scene = &self.scene;
+        let vertices: usize = self.objects.iter().map(|o| o.mesh.vertex_count()).sum();
+        let triangles: usize = self.objects.iter().map(|o| o.mesh.triangle_count()).sum();
+        let grid = scene.water.grid();
+        let mut text = String::new();
+        use std::fmt::Write;
+        let _ = writeln!(text, "scene      {} ({})", scene.name, scene.path.display());
+        let _ = writeln!(
+            text,
+            "timeline   frames {}-{} at {} fps ({:.2} s)",
+            scene.timeline.first_frame,
+            scene.timeline.last_frame,
+            scene.timeline.fps,
+            scene.timeline.time_secs(scene.timeline.last_frame)
+        );
+        let _ = writeln!(text, "objects    {} ({} vertices, {} triangles)", self.objects.len(), vertices, triangles);
+        for object in &self.objects {
+            let _ = writeln!(
+                text,
+                "           - {}: {} vertices, {} triangles",
+                object.name,
+                object.mesh.vertex_count(),
+                object.mesh.triangle_count()
+            );
+        }
+        let _ = writeln!(
+            text,
+            "water      {}x{} cells over x {:.2}..{:.2} m, z {:.2}..{:.2} m ({} facets), {} waves, n {} / {}",
+            grid.cells_x,
+            grid.cells_z,
+            grid.min_x,
+            grid.max_x,
+            grid.min_z,
+            grid.max_z,
+            2 * grid.cells_x as u64 * grid.cells_z as u64,
+            self.waves.waves.len(),
+            scene.water.n_above,
+            scene.water.n_below
+        );
+        let _ = writeln!(text, "textures   {}", self.textures.len());
+        let adapter = crate::gpu::probe_adapter().unwrap_or_else(|e| format!("none usable: {e}"));
+        let _ = writeln!(text, "adapter    {adapter}");
+        text
+    }
+}
+
+fn membrane_vertices(membrane: &Membrane) -> Vec<MembraneVertex> {
+    membrane
+        .positions
+        .iter()
+        .zip(&membrane.normals)
+        .map(|(p, n)| MembraneVertex { position: p.to_array(), normal: n.to_array() })
+        .collect()
+}
+
+fn progress_bar(len: u64, visible: bool) -> indicatif::ProgressBar {
+    if !visible {
+        return indicatif::ProgressBar::hidden();
+    }
+    let bar = indicatif::ProgressBar::new(len);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} {msg} (ETA {eta})")
+            .expect("valid template"),
+    );
+    bar
+}
+
