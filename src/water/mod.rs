@@ -1,9 +1,29 @@
 //! Stage 2, water: the analytic wave field (a sum of height waves, y = h(x, z, t)), the height-field
 //! view of it at one instant, and the triangulated membrane grid with analytic normals.
 //! Receives the scene's water description and a time; returns a [`Membrane`] and a [`HeightField`].
-//! OWNER: water/timeline helper. Signatures below are the contract used by other stages.
+//! [`optics`] holds the CPU reference of the water's shading terms (refracted sun, Beer-Lambert).
 
 use glam::{DVec3, Vec3};
+
+mod height_fields;
+mod membrane;
+pub mod optics;
+mod waves;
+
+pub use height_fields::{FlatHeightField, FnHeightField};
+pub use membrane::build_membrane;
+pub use waves::{WaterSurface, Wave, WaveField, GRAVITY_M_PER_S2};
+
+/// A wave field, a grid or a membrane that cannot be used, with what to change.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum WaterError {
+    #[error("wave {index}: {reason}")]
+    InvalidWave { index: usize, reason: String },
+    #[error("water level must be finite, got {level_m}")]
+    InvalidLevel { level_m: f64 },
+    #[error("membrane grid: {reason}")]
+    InvalidGrid { reason: String },
+}
 
 /// A surface given as a height field over the horizontal plane. The exact surface: kept beside the
 /// faceted membrane for exact solves, splitting triangles at the water line and the reference tracer.
@@ -32,6 +52,12 @@ pub struct MembraneGrid {
 
 /// The faceted water surface at one instant: (cells_x + 1) * (cells_z + 1) vertices, row-major in z
 /// then x (index = iz * (cells_x + 1) + ix), two triangles per cell, counter-clockwise seen from above.
+///
+/// Triangle layout (fixed, other stages rely on it): cell (ix, iz) has index `c = iz * cells_x + ix`
+/// and owns triangles `2c` and `2c + 1`. With `v00 = (ix, iz)`, `v10 = (ix + 1, iz)`,
+/// `v01 = (ix, iz + 1)`, `v11 = (ix + 1, iz + 1)`, every cell is cut along the diagonal v00-v11:
+/// triangle `2c = [v00, v01, v11]` (the half where the local z fraction >= the x fraction) and
+/// `2c + 1 = [v00, v11, v10]`. Both have `(p1 - p0) x (p2 - p0)` pointing to +y.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Membrane {
     pub grid: MembraneGrid,

@@ -1,0 +1,385 @@
+//! The analytic wave field: a still level plus a sum of travelling cosine height waves, and its
+//! frozen view at one instant ([`WaterSurface`]), which is the exact [`HeightField`] of that frame.
+
+use std::f64::consts::TAU;
+
+use super::{HeightField, WaterError};
+
+/// Standard gravity, m/s^2: the deep-water dispersion relation `omega^2 = g k` uses it.
+pub const GRAVITY_M_PER_S2: f64 = 9.81;
+
+/// One travelling height wave: displacement `a * cos(k (d . x) - omega t + phase)` with
+/// `k = 2 pi / wavelength`, `d` the unit direction of travel in the xz plane and `x = (x, z)`.
+/// `omega` follows deep-water dispersion `omega^2 = g k` unless `speed_m_per_s` gives the phase
+/// speed (`omega = k * speed`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Wave {
+    pub amplitude_m: f64,
+    pub wavelength_m: f64,
+    /// Direction of travel (x, z). Meant to be unit; it is normalised before use so a scene that
+    /// writes (1, 1) still gets the stated wavelength.
+    pub direction: [f64; 2],
+    pub phase_rad: f64,
+    pub speed_m_per_s: Option<f64>,
+}
+
+impl Wave {
+    pub fn wavenumber_rad_per_m(&self) -> f64 {
+        TAU / self.wavelength_m
+    }
+
+    /// `omega`: from the given phase speed, else from deep-water dispersion `sqrt(g k)`.
+    pub fn angular_frequency_rad_per_s(&self) -> f64 {
+        let k = self.wavenumber_rad_per_m();
+        match self.speed_m_per_s {
+            Some(speed) => k * speed,
+            None => (GRAVITY_M_PER_S2 * k).sqrt(),
+        }
+    }
+
+    /// Speed at which crests advance along `direction`: `omega / k`.
+    pub fn phase_speed_m_per_s(&self) -> f64 {
+        self.angular_frequency_rad_per_s() / self.wavenumber_rad_per_m()
+    }
+
+    /// The unit direction of travel.
+    pub fn unit_direction(&self) -> [f64; 2] {
+        let [dx, dz] = self.direction;
+        let length = dx.hypot(dz);
+        [dx / length, dz / length]
+    }
+
+    /// Checks that the wave can be evaluated: finite numbers, positive wavelength, a direction.
+    pub fn validate(&self) -> Result<(), String> {
+        let finite = [
+            ("amplitude_m", self.amplitude_m),
+            ("wavelength_m", self.wavelength_m),
+            ("direction[0]", self.direction[0]),
+            ("direction[1]", self.direction[1]),
+            ("phase_rad", self.phase_rad),
+        ];
+        for (name, value) in finite {
+            if !value.is_finite() {
+                return Err(format!("{name} must be a finite number, got {value}"));
+            }
+        }
+        if self.wavelength_m <= 0.0 {
+            return Err(format!(
+                "wavelength_m must be > 0, got {}",
+                self.wavelength_m
+            ));
+        }
+        if self.direction[0].hypot(self.direction[1]) < 1e-9 {
+            return Err("direction must be a non-zero (x, z) vector".to_string());
+        }
+        if let Some(speed) = self.speed_m_per_s {
+            if !speed.is_finite() {
+                return Err(format!(
+                    "speed_m_per_s must be a finite number, got {speed}"
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The water of a scene: the still level and the waves on it.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct WaveField {
+    pub level_m: f64,
+    pub waves: Vec<Wave>,
+}
+
+impl WaveField {
+    /// Every wave valid and the level finite; the first problem found is reported.
+    pub fn validate(&self) -> Result<(), WaterError> {
+        if !self.level_m.is_finite() {
+            return Err(WaterError::InvalidLevel {
+                level_m: self.level_m,
+            });
+        }
+        for (index, wave) in self.waves.iter().enumerate() {
+            wave.validate()
+                .map_err(|reason| WaterError::InvalidWave { index, reason })?;
+        }
+        Ok(())
+    }
+
+    /// The surface frozen at `time_secs`: the exact height field of that frame.
+    pub fn at(&self, time_secs: f64) -> WaterSurface {
+        let terms = self
+            .waves
+            .iter()
+            .map(|wave| {
+                let k = wave.wavenumber_rad_per_m();
+                let [dx, dz] = wave.unit_direction();
+                WaveTerm {
+                    amplitude_m: wave.amplitude_m,
+                    kx: k * dx,
+                    kz: k * dz,
+                    phase_now_rad: wave.phase_rad - wave.angular_frequency_rad_per_s() * time_secs,
+                }
+            })
+            .collect();
+        WaterSurface {
+            level_m: self.level_m,
+            time_secs,
+            terms,
+        }
+    }
+
+    /// Lowest and highest heights the surface can ever reach: level -/+ the sum of |amplitudes|.
+    pub fn height_bounds_m(&self) -> (f64, f64) {
+        let reach: f64 = self.waves.iter().map(|wave| wave.amplitude_m.abs()).sum();
+        (self.level_m - reach, self.level_m + reach)
+    }
+}
+
+/// One wave at a fixed time: `a cos(kx x + kz z + phase_now)`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct WaveTerm {
+    amplitude_m: f64,
+    kx: f64,
+    kz: f64,
+    /// `phase - omega t`, folded in once per frame so evaluation is one cosine per wave.
+    phase_now_rad: f64,
+}
+
+/// The wave field at one instant, as an exact [`HeightField`] (owned, so it can outlive the field).
+#[derive(Clone, Debug, PartialEq)]
+pub struct WaterSurface {
+    level_m: f64,
+    time_secs: f64,
+    terms: Vec<WaveTerm>,
+}
+
+impl WaterSurface {
+    pub fn time_secs(&self) -> f64 {
+        self.time_secs
+    }
+
+    pub fn level_m(&self) -> f64 {
+        self.level_m
+    }
+}
+
+impl HeightField for WaterSurface {
+    fn height(&self, x: f64, z: f64) -> f64 {
+        self.level_m
+            + self
+                .terms
+                .iter()
+                .map(|term| {
+                    term.amplitude_m * (term.kx * x + term.kz * z + term.phase_now_rad).cos()
+                })
+                .sum::<f64>()
+    }
+
+    fn gradient(&self, x: f64, z: f64) -> (f64, f64) {
+        self.terms.iter().fold((0.0, 0.0), |(gx, gz), term| {
+            let slope = -term.amplitude_m * (term.kx * x + term.kz * z + term.phase_now_rad).sin();
+            (gx + slope * term.kx, gz + slope * term.kz)
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn wave(amplitude_m: f64, wavelength_m: f64, direction: [f64; 2], phase_rad: f64) -> Wave {
+        Wave {
+            amplitude_m,
+            wavelength_m,
+            direction,
+            phase_rad,
+            speed_m_per_s: None,
+        }
+    }
+
+    fn choppy_field() -> WaveField {
+        WaveField {
+            level_m: -0.25,
+            waves: vec![
+                wave(0.05, 3.0, [1.0, 0.0], 0.3),
+                wave(0.02, 1.3, [0.6, 0.8], 1.7),
+                wave(0.012, 0.7, [-0.28, 0.96], -2.0),
+                Wave {
+                    speed_m_per_s: Some(0.4),
+                    ..wave(0.008, 2.2, [0.0, -1.0], 0.0)
+                },
+            ],
+        }
+    }
+
+    /// Seeded points: a small LCG so the test needs no extra crate and repeats exactly.
+    fn seeded_points(count: usize, half_extent_m: f64) -> Vec<(f64, f64)> {
+        let mut state: u64 = 0x5eed_1234_abcd_0001;
+        let mut next = move || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((state >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
+        };
+        (0..count)
+            .map(|_| (next() * half_extent_m, next() * half_extent_m))
+            .collect()
+    }
+
+    #[test]
+    fn gradient_matches_central_differences() {
+        let surface = choppy_field().at(3.7);
+        let step_m = 1e-5;
+        for (x, z) in seeded_points(200, 8.0) {
+            let (gx, gz) = surface.gradient(x, z);
+            let fd_x =
+                (surface.height(x + step_m, z) - surface.height(x - step_m, z)) / (2.0 * step_m);
+            let fd_z =
+                (surface.height(x, z + step_m) - surface.height(x, z - step_m)) / (2.0 * step_m);
+            // Central differences: truncation ~ h^2 |h'''| / 6 ~ 1e-10 * (a k^3 ~ 10), round-off
+            // ~ 1e-16 / 1e-5 = 1e-11; slopes themselves are ~0.1.
+            assert!(
+                (gx - fd_x).abs() < 1e-8,
+                "dh/dx at ({x}, {z}): {gx} vs {fd_x}"
+            );
+            assert!(
+                (gz - fd_z).abs() < 1e-8,
+                "dh/dz at ({x}, {z}): {gz} vs {fd_z}"
+            );
+        }
+    }
+
+    #[test]
+    fn normals_are_unit_point_up_and_are_perpendicular_to_the_surface() {
+        let surface = choppy_field().at(1.25);
+        let step_m = 1e-4;
+        for (x, z) in seeded_points(200, 8.0) {
+            let normal = surface.normal(x, z);
+            assert!((normal.length() - 1.0).abs() < 1e-12);
+            assert!(normal.y > 0.0);
+            let point = glam::DVec3::new(x, surface.height(x, z), z);
+            let along_x = glam::DVec3::new(x + step_m, surface.height(x + step_m, z), z) - point;
+            let along_z = glam::DVec3::new(x, surface.height(x, z + step_m), z + step_m) - point;
+            // Tangents from finite steps differ from the exact ones by O(step^2 * curvature).
+            assert!(normal.dot(along_x.normalize()).abs() < 1e-3);
+            assert!(normal.dot(along_z.normalize()).abs() < 1e-3);
+        }
+    }
+
+    #[test]
+    fn deep_water_period_is_the_textbook_value() {
+        // T = sqrt(2 pi lambda / g): for 10 m waves about 2.53 s.
+        let w = wave(0.1, 10.0, [1.0, 0.0], 0.0);
+        let period_secs = TAU / w.angular_frequency_rad_per_s();
+        let expected = (TAU * 10.0 / GRAVITY_M_PER_S2).sqrt();
+        assert!((period_secs - expected).abs() < 1e-12);
+        assert!((period_secs - 2.531).abs() < 1e-3);
+        let field = WaveField {
+            level_m: 0.0,
+            waves: vec![w],
+        };
+        for (x, z) in seeded_points(20, 5.0) {
+            let now = field.at(0.8).height(x, z);
+            let one_period_later = field.at(0.8 + period_secs).height(x, z);
+            assert!((now - one_period_later).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn crests_advance_at_the_deep_water_phase_speed_along_the_direction() {
+        let w = wave(0.05, 2.5, [0.6, -0.8], 0.9);
+        let field = WaveField {
+            level_m: 0.3,
+            waves: vec![w],
+        };
+        let k = TAU / 2.5;
+        let speed = (GRAVITY_M_PER_S2 / k).sqrt();
+        assert!((w.phase_speed_m_per_s() - speed).abs() < 1e-12);
+        let elapsed_secs = 0.37;
+        let (shift_x, shift_z) = (0.6 * speed * elapsed_secs, -0.8 * speed * elapsed_secs);
+        let before = field.at(1.0);
+        let after = field.at(1.0 + elapsed_secs);
+        let mut largest_mismatch_if_too_fast: f64 = 0.0;
+        for (x, z) in seeded_points(50, 4.0) {
+            let moved = after.height(x + shift_x, z + shift_z);
+            assert!(
+                (before.height(x, z) - moved).abs() < 1e-12,
+                "pattern did not translate"
+            );
+            let too_far = after.height(x + 1.1 * shift_x, z + 1.1 * shift_z);
+            largest_mismatch_if_too_fast =
+                largest_mismatch_if_too_fast.max((before.height(x, z) - too_far).abs());
+        }
+        // The check above can fail: 10 % too fast a speed shifts the pattern by 0.1 c t = 7 cm, a
+        // mismatch up to a k 0.07 m ~ 9 mm, far above the 1e-12 tolerance.
+        assert!(
+            largest_mismatch_if_too_fast > 1e-3,
+            "{largest_mismatch_if_too_fast}"
+        );
+    }
+
+    #[test]
+    fn given_speed_overrides_dispersion() {
+        let w = Wave {
+            speed_m_per_s: Some(0.5),
+            ..wave(0.02, 1.0, [0.0, 1.0], 0.0)
+        };
+        assert!((w.phase_speed_m_per_s() - 0.5).abs() < 1e-12);
+        assert!((w.angular_frequency_rad_per_s() - TAU * 0.5).abs() < 1e-12);
+        let field = WaveField {
+            level_m: 0.0,
+            waves: vec![w],
+        };
+        for (x, z) in seeded_points(20, 3.0) {
+            let moved = field.at(2.0).height(x, z + 0.5 * 2.0);
+            assert!((field.at(0.0).height(x, z) - moved).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn height_is_the_formula_and_direction_is_normalised() {
+        let unnormalised = wave(0.07, 4.0, [3.0, 4.0], 0.5);
+        let field = WaveField {
+            level_m: 1.0,
+            waves: vec![unnormalised],
+        };
+        let (x, z, t) = (1.3, -0.4, 2.2);
+        let k = TAU / 4.0;
+        let omega = (GRAVITY_M_PER_S2 * k).sqrt();
+        let expected = 1.0 + 0.07 * (k * (0.6 * x + 0.8 * z) - omega * t + 0.5).cos();
+        assert!((field.at(t).height(x, z) - expected).abs() < 1e-14);
+        assert_eq!(field.height_bounds_m(), (1.0 - 0.07, 1.0 + 0.07));
+    }
+
+    #[test]
+    fn validation_names_the_wave_and_the_problem() {
+        let mut field = choppy_field();
+        assert_eq!(field.validate(), Ok(()));
+        field.waves[2].wavelength_m = 0.0;
+        let message = field.validate().unwrap_err().to_string();
+        assert!(
+            message.contains("wave 2") && message.contains("wavelength_m"),
+            "{message}"
+        );
+        field.waves[2].wavelength_m = 1.0;
+        field.waves[1].direction = [0.0, 0.0];
+        assert!(field
+            .validate()
+            .unwrap_err()
+            .to_string()
+            .contains("direction"));
+        field.waves[1].direction = [1.0, 0.0];
+        field.waves[0].amplitude_m = f64::NAN;
+        assert!(field
+            .validate()
+            .unwrap_err()
+            .to_string()
+            .contains("amplitude_m"));
+        field.waves[0].amplitude_m = 0.1;
+        field.level_m = f64::INFINITY;
+        assert!(matches!(
+            field.validate(),
+            Err(WaterError::InvalidLevel { .. })
+        ));
+    }
+}
