@@ -73,8 +73,7 @@ pub struct BakedTexture {
     pub repeat_m: [f64; 2],
 }
 
-/// Pixels per metre of procedural textures: 512 pixels across a 1 m repeat unit keeps 5 mm grout
-/// lines about 2.5 pixels wide.
+/// Pixels per metre of procedural textures: 512 keeps 5 mm grout lines about 2.5 pixels wide.
 const PIXELS_PER_M: f64 = 512.0;
 /// Largest side of a baked procedural texture.
 const MAX_SIDE_PX: f64 = 2048.0;
@@ -157,10 +156,14 @@ impl TextureSpec {
     }
 }
 
-/// The repeat unit of a tile texture: about a metre of whole tiles along u; along v the lane
+/// Side of a tile texture's repeat unit: long enough that the per-tile randomness does not show
+/// an obvious pattern across a deck or a floor.
+const TILES_REPEAT_M: f64 = 2.0;
+
+/// The repeat unit of a tile texture: about two metres of whole tiles along u; along v the lane
 /// spacing when there are lanes (tiles then stretch by at most half a tile per lane to fit).
 fn tiles_layout(tiles: &TilesSpec) -> ([f64; 2], [u32; 2]) {
-    let tiles_u = (1.0 / tiles.tile_size_m).round().max(1.0) as u32;
+    let tiles_u = (TILES_REPEAT_M / tiles.tile_size_m).round().max(1.0) as u32;
     let repeat_u = tiles_u as f64 * tiles.tile_size_m;
     match &tiles.lanes {
         Some(lanes) => {
@@ -231,27 +234,31 @@ fn bake_image(
     width: u32,
     height: u32,
     supersamples: usize,
-    linear_at: impl Fn(f64, f64) -> [f64; 3],
+    linear_at: impl Fn(f64, f64) -> [f64; 3] + Sync,
 ) -> Texture {
-    let mut rgba8_srgb = Vec::with_capacity(width as usize * height as usize * 4);
+    use rayon::prelude::*;
+    let mut rgba8_srgb = vec![0u8; width as usize * height as usize * 4];
     let n = supersamples as f64;
-    for y in 0..height {
-        for x in 0..width {
-            let mut sum = [0.0; 3];
-            for sy in 0..supersamples {
-                for sx in 0..supersamples {
-                    let u = (x as f64 + (sx as f64 + 0.5) / n) / width as f64;
-                    let v = (y as f64 + (sy as f64 + 0.5) / n) / height as f64;
-                    let c = linear_at(u, v);
-                    for k in 0..3 {
-                        sum[k] += c[k];
+    // Rows are independent, so baking them in parallel gives the same bytes as in sequence.
+    rgba8_srgb
+        .par_chunks_mut(width as usize * 4)
+        .enumerate()
+        .for_each(|(y, row)| {
+            for (x, texel) in row.chunks_exact_mut(4).enumerate() {
+                let mut sum = [0.0; 3];
+                for sy in 0..supersamples {
+                    for sx in 0..supersamples {
+                        let u = (x as f64 + (sx as f64 + 0.5) / n) / width as f64;
+                        let v = (y as f64 + (sy as f64 + 0.5) / n) / height as f64;
+                        let c = linear_at(u, v);
+                        for k in 0..3 {
+                            sum[k] += c[k];
+                        }
                     }
                 }
+                texel.copy_from_slice(&encode_srgb8(sum.map(|s| s / (n * n))));
             }
-            let mean = sum.map(|s| s / (n * n));
-            rgba8_srgb.extend_from_slice(&encode_srgb8(mean));
-        }
-    }
+        });
     Texture {
         name: name.to_owned(),
         width,
@@ -339,10 +346,10 @@ mod tests {
     fn tiles_have_grout_on_borders_and_tile_colour_inside() {
         let baked = TextureSpec::Tiles(pool_tiles(false)).bake("tiles").unwrap();
         let t = &baked.texture;
-        assert_eq!(baked.repeat_m, [1.0, 1.0]);
-        assert_eq!((t.width, t.height), (512, 512));
-        assert_eq!(t.rgba8_srgb.len(), 512 * 512 * 4);
-        // 4 tiles of 128 px: pixel 0 and 128 straddle a border (grout), pixel 64 is a tile centre.
+        assert_eq!(baked.repeat_m, [2.0, 2.0]);
+        assert_eq!((t.width, t.height), (1024, 1024));
+        assert_eq!(t.rgba8_srgb.len(), 1024 * 1024 * 4);
+        // 8 tiles of 128 px: pixel 0 and 128 straddle a border (grout), pixel 64 is a tile centre.
         let grout = encode_srgb8(srgb_to_linear3([0.6, 0.62, 0.62]));
         assert_eq!(texel(t, 0, 64), grout);
         assert_eq!(texel(t, 64, 128), grout);
@@ -358,8 +365,8 @@ mod tests {
     fn lane_stripe_is_dark_and_centred_in_the_lane() {
         let baked = TextureSpec::Tiles(pool_tiles(true)).bake("floor").unwrap();
         let t = &baked.texture;
-        assert_eq!(baked.repeat_m, [1.0, 2.5]);
-        assert_eq!((t.width, t.height), (512, 1280));
+        assert_eq!(baked.repeat_m, [2.0, 2.5]);
+        assert_eq!((t.width, t.height), (1024, 1280));
         // Lane centre v = 1.25 m = row 640 lies on a tile border (grout): sample beside it.
         let stripe = texel(t, 64, 600);
         assert!(

@@ -328,8 +328,8 @@ fn camera_keys(
                 return Err(map.error(
                     &at.key(time_key),
                     format!(
-                        "camera keyframes must be in increasing time order: this one is at {time_secs} s, \
-                         camera[{}] before it at {} s",
+                        "camera keyframes must be in increasing time order: this one is at {time_secs:.3} s, \
+                         camera[{}] before it at {:.3} s",
                         i - 1,
                         previous.time_secs
                     ),
