@@ -1,0 +1,129 @@
+//! The scene file as written: serde structs mirroring the TOML, every field optional unless a scene
+//! cannot do without it, unknown keys refused. Values are checked and defaulted in `validate`,
+//! which knows the key paths and so can point at the offending line.
+
+use serde::Deserialize;
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawScene {
+    pub name: Option<String>,
+    /// Longest triangle edge of the built-in primitives, metres.
+    pub max_edge_m: Option<f64>,
+    #[serde(default)]
+    pub timeline: RawTimeline,
+    pub camera: Option<Vec<RawCameraKey>>,
+    #[serde(default)]
+    pub water: RawWater,
+    #[serde(default)]
+    pub sky: RawSky,
+    #[serde(default)]
+    pub sun: RawSun,
+    pub object: Option<Vec<RawObject>>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawTimeline {
+    pub fps: Option<f64>,
+    pub frames: Option<[i64; 2]>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawCameraKey {
+    pub frame: Option<f64>,
+    pub time_secs: Option<f64>,
+    pub eye: [f64; 3],
+    pub target: [f64; 3],
+    pub fov_deg: Option<f64>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawWater {
+    pub level_m: Option<f64>,
+    /// (x, z) of the membrane's corner with the smallest coordinates.
+    pub min: Option<[f64; 2]>,
+    pub max: Option<[f64; 2]>,
+    /// Cells along x and z.
+    pub resolution: Option<[i64; 2]>,
+    pub n_above: Option<f64>,
+    pub n_below: Option<f64>,
+    pub absorption_per_m: Option<[f64; 3]>,
+    pub scatter_color: Option<[f64; 3]>,
+    pub wave: Option<Vec<RawWave>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawWave {
+    pub amplitude_m: f64,
+    pub wavelength_m: f64,
+    pub direction_deg: Option<f64>,
+    pub direction: Option<[f64; 2]>,
+    pub phase_rad: Option<f64>,
+    pub speed_m_per_s: Option<f64>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawSky {
+    pub zenith_color: Option<[f64; 3]>,
+    pub horizon_color: Option<[f64; 3]>,
+    pub ambient_color: Option<[f64; 3]>,
+    pub ambient_intensity: Option<f64>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawSun {
+    pub azimuth_deg: Option<f64>,
+    pub elevation_deg: Option<f64>,
+    pub direction: Option<[f64; 3]>,
+    pub color: Option<[f64; 3]>,
+    pub intensity: Option<f64>,
+    pub size_deg: Option<f64>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawObject {
+    pub name: Option<String>,
+    pub shape: String,
+    /// box: [x, y, z]; quad: [x, z].
+    pub size_m: Option<Vec<f64>>,
+    pub radius_m: Option<f64>,
+    pub depth_m: Option<f64>,
+    pub coping_height_m: Option<f64>,
+    pub deck_width_m: Option<f64>,
+    pub translate: Option<[f64; 3]>,
+    pub rotate_deg: Option<[f64; 3]>,
+    pub scale: Option<[f64; 3]>,
+    pub max_edge_m: Option<f64>,
+    pub texture: Option<RawTexture>,
+    pub floor_texture: Option<RawTexture>,
+    pub deck_texture: Option<RawTexture>,
+    pub tint: Option<[f64; 3]>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawTexture {
+    pub kind: Option<String>,
+    pub color: Option<[f64; 3]>,
+    pub color_b: Option<[f64; 3]>,
+    pub square_m: Option<f64>,
+    pub tile_size_m: Option<f64>,
+    pub grout_width_m: Option<f64>,
+    pub grout_color: Option<[f64; 3]>,
+    pub variation: Option<f64>,
+    pub accent_color: Option<[f64; 3]>,
+    pub accent_fraction: Option<f64>,
+    pub lane_spacing_m: Option<f64>,
+    pub lane_width_m: Option<f64>,
+    pub lane_color: Option<[f64; 3]>,
+    pub seed: Option<u32>,
+    pub image: Option<String>,
+    pub size_m: Option<[f64; 2]>,
+}

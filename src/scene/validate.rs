@@ -1,0 +1,979 @@
+//! Raw scene (as written) -> validated [`Scene`]: defaults filled in, every value checked, and each
+//! problem reported at the key that causes it, with what to change.
+
+use std::path::Path;
+use std::sync::Arc;
+
+use glam::Vec3;
+
+use super::error::{KeyPath, SourceMap};
+use super::format::{RawCameraKey, RawObject, RawScene, RawTexture, RawWater};
+use super::primitives::DEFAULT_MAX_EDGE_M;
+use super::textures::{srgb_to_linear3, ImageSpec, LaneSpec, SourceRef, TextureSpec, TilesSpec};
+use super::{ObjectSpec, Scene, SceneError, ShapeSpec, WaterSpec, WaveSpec};
+use crate::draw::Lighting;
+use crate::timeline::{CameraKey, Timeline};
+
+type Result<T> = std::result::Result<T, SceneError>;
+
+const DEFAULT_FPS: f64 = 24.0;
+const DEFAULT_FRAMES: [i64; 2] = [1, 48];
+const DEFAULT_WATER_MIN_XZ: [f64; 2] = [-5.0, -2.5];
+const DEFAULT_WATER_MAX_XZ: [f64; 2] = [5.0, 2.5];
+const DEFAULT_RESOLUTION: [i64; 2] = [128, 64];
+/// Membrane grids beyond this many cells a side are surely a typo (and would not fit in memory).
+const MAX_RESOLUTION: i64 = 8192;
+const DEFAULT_N_ABOVE: f64 = 1.0;
+const DEFAULT_N_BELOW: f64 = 1.333;
+/// Clear pool water: red is absorbed within metres, blue travels far (Pope & Fry 1997, roughly).
+const DEFAULT_ABSORPTION_PER_M: [f64; 3] = [0.45, 0.07, 0.03];
+const DEFAULT_SCATTER_COLOR: [f64; 3] = [0.05, 0.30, 0.40];
+const DEFAULT_ZENITH_COLOR: [f64; 3] = [0.30, 0.50, 0.85];
+const DEFAULT_HORIZON_COLOR: [f64; 3] = [0.78, 0.86, 0.95];
+const DEFAULT_AMBIENT_COLOR: [f64; 3] = [0.60, 0.70, 0.85];
+const DEFAULT_AMBIENT_INTENSITY: f64 = 0.3;
+const DEFAULT_SUN_AZIMUTH_DEG: f64 = 135.0;
+const DEFAULT_SUN_ELEVATION_DEG: f64 = 55.0;
+const DEFAULT_SUN_COLOR: [f64; 3] = [1.0, 0.97, 0.90];
+const DEFAULT_SUN_INTENSITY: f64 = 1.0;
+/// The real sun's angular diameter.
+const DEFAULT_SUN_SIZE_DEG: f64 = 0.53;
+const DEFAULT_FOV_DEG: f64 = 50.0;
+/// Finer tessellation than this would build millions of vertices per square metre.
+const MIN_MAX_EDGE_M: f64 = 0.01;
+
+const SHAPES: [&str; 4] = ["box", "sphere", "quad", "pool"];
+const TEXTURE_KINDS: [&str; 4] = ["solid", "checker", "tiles", "image"];
+const COMMON_OBJECT_KEYS: [&str; 8] = [
+    "name",
+    "shape",
+    "translate",
+    "rotate_deg",
+    "scale",
+    "max_edge_m",
+    "texture",
+    "tint",
+];
+
+pub(crate) fn validate(raw: RawScene, map: &SourceMap<'_>) -> Result<Scene> {
+    let root = KeyPath::root();
+    let name = scene_name(raw.name.clone(), map)?;
+    let max_edge_m = match raw.max_edge_m {
+        Some(v) => max_edge(v, &root.key("max_edge_m"), map)?,
+        None => DEFAULT_MAX_EDGE_M,
+    };
+
+    let timeline = timeline(&raw, map)?;
+    let water = water(&raw.water, map)?;
+    let camera_keys = camera_keys(raw.camera.as_deref(), &timeline, &water, map)?;
+    let lighting = lighting(&raw, map)?;
+    let objects = match &raw.object {
+        Some(objects) => objects
+            .iter()
+            .enumerate()
+            .map(|(i, o)| object(o, &root.key("object").index(i), i, max_edge_m, &water, map))
+            .collect::<Result<Vec<_>>>()?,
+        None => vec![default_pool(max_edge_m)],
+    };
+
+    Ok(Scene {
+        name,
+        path: map.file.to_path_buf(),
+        timeline,
+        camera_keys,
+        water,
+        objects: Arc::from(objects),
+        lighting,
+    })
+}
+
+fn scene_name(name: Option<String>, map: &SourceMap<'_>) -> Result<String> {
+    let name = match name {
+        Some(name) => name,
+        None => map
+            .file
+            .file_stem()
+            .map_or_else(|| "scene".to_owned(), |s| s.to_string_lossy().into_owned()),
+    };
+    if name.is_empty() || name.contains(['/', '\\']) {
+        return Err(map.error(
+            &KeyPath::root().key("name"),
+            format!("{name:?} cannot name output files (it is empty or contains a path separator)"),
+            "set e.g. name = \"pool\"",
+        ));
+    }
+    Ok(name)
+}
+
+fn timeline(raw: &RawScene, map: &SourceMap<'_>) -> Result<Timeline> {
+    let path = KeyPath::root().key("timeline");
+    let fps = raw.timeline.fps.unwrap_or(DEFAULT_FPS);
+    if fps <= 0.0 {
+        return Err(map.error(
+            &path.key("fps"),
+            format!("must be more than 0 frames per second (got {fps})"),
+            "set e.g. fps = 24",
+        ));
+    }
+    let [first, last] = raw.timeline.frames.unwrap_or(DEFAULT_FRAMES);
+    let frames_path = path.key("frames");
+    if first < 0 || last < 0 || first > u32::MAX as i64 || last > u32::MAX as i64 {
+        return Err(map.error(
+            &frames_path,
+            format!(
+                "frame numbers must be between 0 and {} (got [{first}, {last}])",
+                u32::MAX
+            ),
+            "set e.g. frames = [1, 48]",
+        ));
+    }
+    if last < first {
+        return Err(map.error(
+            &frames_path,
+            format!("the frame range is empty: the last frame comes before the first (got [{first}, {last}])"),
+            format!("write the first frame first, e.g. frames = [{last}, {first}]"),
+        ));
+    }
+    Ok(Timeline {
+        fps,
+        first_frame: first as u32,
+        last_frame: last as u32,
+    })
+}
+
+fn water(raw: &RawWater, map: &SourceMap<'_>) -> Result<WaterSpec> {
+    let path = KeyPath::root().key("water");
+    let min_xz = raw.min.unwrap_or(DEFAULT_WATER_MIN_XZ);
+    let max_xz = raw.max.unwrap_or(DEFAULT_WATER_MAX_XZ);
+    if max_xz[0] <= min_xz[0] || max_xz[1] <= min_xz[1] {
+        let at = if raw.max.is_some() {
+            path.key("max")
+        } else {
+            path.key("min")
+        };
+        return Err(map.error(
+            &at,
+            format!(
+                "the water's extent is empty: max {max_xz:?} must exceed min {min_xz:?} in both x and z"
+            ),
+            "set e.g. min = [-5.0, -2.5] and max = [5.0, 2.5]",
+        ));
+    }
+    let resolution = raw.resolution.unwrap_or(DEFAULT_RESOLUTION);
+    if resolution
+        .iter()
+        .any(|&cells| !(1..=MAX_RESOLUTION).contains(&cells))
+    {
+        return Err(map.error(
+            &path.key("resolution"),
+            format!(
+                "must be at least 1 and at most {MAX_RESOLUTION} cells in each direction (got [{}, {}])",
+                resolution[0], resolution[1]
+            ),
+            "set e.g. resolution = [128, 64]",
+        ));
+    }
+    let n_above = raw.n_above.unwrap_or(DEFAULT_N_ABOVE);
+    let n_below = raw.n_below.unwrap_or(DEFAULT_N_BELOW);
+    for (key, n, example) in [
+        ("n_above", n_above, "1.0 (air)"),
+        ("n_below", n_below, "1.333 (water)"),
+    ] {
+        if n <= 0.0 {
+            return Err(map.error(
+                &path.key(key),
+                format!("an index of refraction must be positive (got {n})"),
+                format!("set e.g. {key} = {example}"),
+            ));
+        }
+    }
+    let absorption_per_m = raw.absorption_per_m.unwrap_or(DEFAULT_ABSORPTION_PER_M);
+    if absorption_per_m.iter().any(|&a| a < 0.0) {
+        return Err(map.error(
+            &path.key("absorption_per_m"),
+            format!("absorption coefficients cannot be negative (got {absorption_per_m:?})"),
+            "set e.g. absorption_per_m = [0.45, 0.07, 0.03] (clear pool water, 1/m)",
+        ));
+    }
+    let scatter = color(
+        raw.scatter_color,
+        DEFAULT_SCATTER_COLOR,
+        &path.key("scatter_color"),
+        map,
+    )?;
+
+    let mut waves = Vec::new();
+    for (i, wave) in raw.wave.iter().flatten().enumerate() {
+        let at = path.key("wave").index(i);
+        if wave.amplitude_m < 0.0 {
+            return Err(map.error(
+                &at.key("amplitude_m"),
+                format!("cannot be negative (got {})", wave.amplitude_m),
+                "set e.g. amplitude_m = 0.02 (shift phase_rad by 3.14159 to flip a wave)",
+            ));
+        }
+        positive(
+            wave.wavelength_m,
+            &at.key("wavelength_m"),
+            "wavelength_m = 2.0",
+            map,
+        )?;
+        let direction_deg = match (wave.direction_deg, wave.direction) {
+            (Some(_), Some(_)) => {
+                return Err(map.error(
+                    &at.key("direction"),
+                    "both direction and direction_deg are given",
+                    "keep one of them",
+                ))
+            }
+            (Some(deg), None) => deg,
+            (None, Some([x, z])) => {
+                if x * x + z * z == 0.0 {
+                    return Err(map.error(
+                        &at.key("direction"),
+                        "a direction cannot be the zero vector",
+                        "set e.g. direction = [1.0, 0.5] (x, z)",
+                    ));
+                }
+                z.atan2(x).to_degrees()
+            }
+            (None, None) => 0.0,
+        };
+        if let Some(speed) = wave.speed_m_per_s {
+            positive(
+                speed,
+                &at.key("speed_m_per_s"),
+                "speed_m_per_s = 1.5, or remove it for deep-water speed",
+                map,
+            )?;
+        }
+        waves.push(WaveSpec {
+            amplitude_m: wave.amplitude_m,
+            wavelength_m: wave.wavelength_m,
+            direction_deg,
+            phase_rad: wave.phase_rad.unwrap_or(0.0),
+            speed_m_per_s: wave.speed_m_per_s,
+        });
+    }
+
+    Ok(WaterSpec {
+        level_m: raw.level_m.unwrap_or(0.0),
+        min_xz,
+        max_xz,
+        resolution: [resolution[0] as u32, resolution[1] as u32],
+        n_above,
+        n_below,
+        absorption_per_m,
+        scatter_color_linear: srgb_to_linear3(scatter),
+        waves,
+    })
+}
+
+fn camera_keys(
+    raw: Option<&[RawCameraKey]>,
+    timeline: &Timeline,
+    water: &WaterSpec,
+    map: &SourceMap<'_>,
+) -> Result<Vec<CameraKey>> {
+    let path = KeyPath::root().key("camera");
+    let Some(raw) = raw.filter(|keys| !keys.is_empty()) else {
+        // Standing on the deck at the middle of one long side, looking across and down.
+        let [x0, z0] = water.min_xz;
+        let [x1, z1] = water.max_xz;
+        let eye = Vec3::new(
+            (0.5 * (x0 + x1)) as f32,
+            (water.level_m + 2.2) as f32,
+            (z0 - 1.5) as f32,
+        );
+        let target = Vec3::new(
+            (0.5 * (x0 + x1)) as f32,
+            (water.level_m - 1.2) as f32,
+            (0.25 * z0 + 0.75 * z1) as f32,
+        );
+        return Ok(vec![CameraKey {
+            time_secs: 0.0,
+            eye,
+            target,
+            fov_y_deg: DEFAULT_FOV_DEG as f32,
+        }]);
+    };
+    let crest_m = water.level_m + water.max_crest_m();
+    let mut keys: Vec<CameraKey> = Vec::with_capacity(raw.len());
+    for (i, key) in raw.iter().enumerate() {
+        let at = path.index(i);
+        let (time_secs, time_key) = match (key.frame, key.time_secs) {
+            (Some(_), Some(_)) => {
+                return Err(map.error(
+                    &at.key("time_secs"),
+                    "both frame and time_secs are given",
+                    "keep one of them",
+                ))
+            }
+            (Some(frame), None) => (
+                (frame - timeline.first_frame as f64) / timeline.fps,
+                "frame",
+            ),
+            (None, Some(t)) => (t, "time_secs"),
+            (None, None) if raw.len() == 1 => (0.0, "eye"),
+            (None, None) => {
+                return Err(map.error(
+                    &at,
+                    "a camera keyframe needs a time when there are several",
+                    "add frame = N or time_secs = T",
+                ))
+            }
+        };
+        if let Some(previous) = keys.last() {
+            if time_secs <= previous.time_secs {
+                return Err(map.error(
+                    &at.key(time_key),
+                    format!(
+                        "camera keyframes must be in increasing time order: this one is at {time_secs:.3} s, \
+                         camera[{}] before it at {:.3} s",
+                        i - 1,
+                        previous.time_secs
+                    ),
+                    "reorder the [[camera]] tables or correct this time",
+                ));
+            }
+        }
+        let eye = key.eye.map(|v| v as f32);
+        let target = key.target.map(|v| v as f32);
+        if key.eye[1] <= crest_m {
+            return Err(map.error(
+                &at.key("eye"),
+                format!(
+                    "the eye is under the water (y = {} m; the surface reaches {crest_m} m at its highest \
+                     crest); snell renders from the air",
+                    key.eye[1]
+                ),
+                format!("raise it, e.g. eye = [{}, {}, {}]", key.eye[0], water.level_m + 2.0, key.eye[2]),
+            ));
+        }
+        if Vec3::from(eye).distance(Vec3::from(target)) < 1e-4 {
+            return Err(map.error(
+                &at.key("target"),
+                "the target is at the eye",
+                "look at a point away from the eye",
+            ));
+        }
+        let fov_deg = key.fov_deg.unwrap_or(DEFAULT_FOV_DEG);
+        if !(fov_deg > 0.0 && fov_deg < 180.0) {
+            return Err(map.error(
+                &at.key("fov_deg"),
+                format!(
+                    "the vertical field of view must be between 0 and 180 degrees (got {fov_deg})"
+                ),
+                "set e.g. fov_deg = 50",
+            ));
+        }
+        keys.push(CameraKey {
+            time_secs,
+            eye: eye.into(),
+            target: target.into(),
+            fov_y_deg: fov_deg as f32,
+        });
+    }
+    Ok(keys)
+}
+
+fn lighting(raw: &RawScene, map: &SourceMap<'_>) -> Result<Lighting> {
+    let sky = KeyPath::root().key("sky");
+    let sun = KeyPath::root().key("sun");
+    let zenith = color(
+        raw.sky.zenith_color,
+        DEFAULT_ZENITH_COLOR,
+        &sky.key("zenith_color"),
+        map,
+    )?;
+    let horizon = color(
+        raw.sky.horizon_color,
+        DEFAULT_HORIZON_COLOR,
+        &sky.key("horizon_color"),
+        map,
+    )?;
+    let ambient = color(
+        raw.sky.ambient_color,
+        DEFAULT_AMBIENT_COLOR,
+        &sky.key("ambient_color"),
+        map,
+    )?;
+    let ambient_intensity = raw
+        .sky
+        .ambient_intensity
+        .unwrap_or(DEFAULT_AMBIENT_INTENSITY);
+    non_negative(
+        ambient_intensity,
+        &sky.key("ambient_intensity"),
+        "ambient_intensity = 0.3",
+        map,
+    )?;
+
+    let angles_given = raw.sun.azimuth_deg.is_some() || raw.sun.elevation_deg.is_some();
+    let direction = match raw.sun.direction {
+        Some(_) if angles_given => {
+            return Err(map.error(
+                &sun.key("direction"),
+                "both direction and azimuth_deg/elevation_deg are given",
+                "keep one way of stating the sun's direction",
+            ))
+        }
+        Some(v) => {
+            let v = glam::DVec3::from(v);
+            if v.length() == 0.0 || v.y <= 0.0 {
+                return Err(map.error(
+                    &sun.key("direction"),
+                    format!(
+                        "the direction toward the sun must point above the horizon (got {:?})",
+                        v.to_array()
+                    ),
+                    "set e.g. direction = [0.4, 0.8, 0.4] (y up)",
+                ));
+            }
+            v.normalize()
+        }
+        None => {
+            let azimuth = raw
+                .sun
+                .azimuth_deg
+                .unwrap_or(DEFAULT_SUN_AZIMUTH_DEG)
+                .to_radians();
+            let elevation_deg = raw.sun.elevation_deg.unwrap_or(DEFAULT_SUN_ELEVATION_DEG);
+            if !(elevation_deg > 0.0 && elevation_deg <= 90.0) {
+                return Err(map.error(
+                    &sun.key("elevation_deg"),
+                    format!("the sun must be above the horizon: 0 < elevation_deg <= 90 (got {elevation_deg})"),
+                    "set e.g. elevation_deg = 55",
+                ));
+            }
+            let elevation = elevation_deg.to_radians();
+            // Azimuth 0 looks along +z, 90 along +x.
+            glam::DVec3::new(
+                elevation.cos() * azimuth.sin(),
+                elevation.sin(),
+                elevation.cos() * azimuth.cos(),
+            )
+        }
+    };
+    let sun_color = color(raw.sun.color, DEFAULT_SUN_COLOR, &sun.key("color"), map)?;
+    let intensity = raw.sun.intensity.unwrap_or(DEFAULT_SUN_INTENSITY);
+    non_negative(intensity, &sun.key("intensity"), "intensity = 1.0", map)?;
+    let size_deg = raw.sun.size_deg.unwrap_or(DEFAULT_SUN_SIZE_DEG);
+    if !(size_deg > 0.0 && size_deg <= 45.0) {
+        return Err(map.error(
+            &sun.key("size_deg"),
+            format!("the sun's angular diameter must be in (0, 45] degrees (got {size_deg})"),
+            "set e.g. size_deg = 0.53 (the real sun)",
+        ));
+    }
+    let linear = |c: [f64; 3], scale: f64| super::to_vec3(srgb_to_linear3(c).map(|v| v * scale));
+    Ok(Lighting {
+        sky_zenith_linear: linear(zenith, 1.0),
+        sky_horizon_linear: linear(horizon, 1.0),
+        sun_direction: direction.as_vec3(),
+        sun_color_linear: linear(sun_color, intensity),
+        sun_size_deg: size_deg as f32,
+        ambient_linear: linear(ambient, ambient_intensity),
+    })
+}
+
+fn default_pool(max_edge_m: f64) -> ObjectSpec {
+    ObjectSpec {
+        name: "pool".into(),
+        shape: ShapeSpec::Pool {
+            depth_m: 1.6,
+            coping_height_m: 0.25,
+            deck_width_m: 3.0,
+            floor_texture: default_floor_tiles(),
+            deck_texture: default_deck_stone(),
+        },
+        translate_m: [0.0; 3],
+        rotate_deg: [0.0; 3],
+        scale: [1.0; 3],
+        max_edge_m,
+        texture: default_wall_tiles(),
+        tint_srgb: [1.0; 3],
+    }
+}
+
+/// White glazed tiles with some pale-blue ones among them, light-grey grout.
+fn default_wall_tiles() -> TextureSpec {
+    TextureSpec::Tiles(TilesSpec {
+        color_srgb: [0.93, 0.96, 0.98],
+        grout_color_srgb: [0.62, 0.66, 0.68],
+        tile_size_m: 0.125,
+        grout_width_m: 0.004,
+        variation: 0.04,
+        accent_color_srgb: [0.72, 0.87, 0.96],
+        accent_fraction: 0.15,
+        lanes: None,
+        seed: 1,
+    })
+}
+
+/// The wall tiles with dark-blue lane stripes every 2.5 m.
+fn default_floor_tiles() -> TextureSpec {
+    let TextureSpec::Tiles(mut tiles) = default_wall_tiles() else {
+        unreachable!("wall tiles are tiles")
+    };
+    tiles.lanes = Some(LaneSpec {
+        spacing_m: 2.5,
+        width_m: 0.25,
+        color_srgb: [0.04, 0.10, 0.32],
+    });
+    tiles.seed = 2;
+    TextureSpec::Tiles(tiles)
+}
+
+/// Large sandstone-coloured slabs.
+fn default_deck_stone() -> TextureSpec {
+    TextureSpec::Tiles(TilesSpec {
+        color_srgb: [0.80, 0.76, 0.68],
+        grout_color_srgb: [0.58, 0.55, 0.50],
+        tile_size_m: 0.5,
+        grout_width_m: 0.008,
+        variation: 0.10,
+        accent_color_srgb: [0.74, 0.70, 0.62],
+        accent_fraction: 0.3,
+        lanes: None,
+        seed: 3,
+    })
+}
+
+fn object(
+    raw: &RawObject,
+    at: &KeyPath,
+    index: usize,
+    scene_max_edge_m: f64,
+    water: &WaterSpec,
+    map: &SourceMap<'_>,
+) -> Result<ObjectSpec> {
+    let shape_name = raw.shape.as_str();
+    if !SHAPES.contains(&shape_name) {
+        return Err(map.error(
+            &at.key("shape"),
+            format!("unknown shape {shape_name:?}"),
+            format!("use one of {}", quoted_list(&SHAPES)),
+        ));
+    }
+    let shape_keys: &[&str] = match shape_name {
+        "box" | "quad" => &["size_m"],
+        "sphere" => &["radius_m"],
+        _ => &[
+            "depth_m",
+            "coping_height_m",
+            "deck_width_m",
+            "floor_texture",
+            "deck_texture",
+        ],
+    };
+    for (key, span) in map.keys_in(at) {
+        let allowed =
+            COMMON_OBJECT_KEYS.contains(&key.as_str()) || shape_keys.contains(&key.as_str());
+        let moves_pool =
+            shape_name == "pool" && ["translate", "rotate_deg", "scale"].contains(&key.as_str());
+        if !allowed || moves_pool {
+            let fix = if moves_pool {
+                "remove it: the pool follows the water's extent (move water.min and water.max instead)".to_owned()
+            } else {
+                format!(
+                    "remove it; a {shape_name} takes {}",
+                    quoted_list(shape_keys)
+                )
+            };
+            return Err(map.error_at(
+                span.start,
+                at.key(&key).to_string(),
+                format!("{key} does not apply to shape = {shape_name:?}"),
+                fix,
+            ));
+        }
+    }
+
+    let max_edge_m = match raw.max_edge_m {
+        Some(v) => max_edge(v, &at.key("max_edge_m"), map)?,
+        None => scene_max_edge_m,
+    };
+    let size = |count: usize, default: &[f64], example: &str| -> Result<Vec<f64>> {
+        let size = raw.size_m.clone().unwrap_or_else(|| default.to_vec());
+        if size.len() != count || size.iter().any(|&s| s <= 0.0) {
+            return Err(map.error(
+                &at.key("size_m"),
+                format!("a {shape_name} needs {count} positive sizes in metres (got {size:?})"),
+                format!("set e.g. size_m = {example}"),
+            ));
+        }
+        Ok(size)
+    };
+    let shape = match shape_name {
+        "box" => {
+            let s = size(3, &[1.0, 1.0, 1.0], "[1.0, 0.5, 0.8]")?;
+            ShapeSpec::Box {
+                size_m: [s[0], s[1], s[2]],
+            }
+        }
+        "quad" => {
+            let s = size(2, &[1.0, 1.0], "[2.0, 1.0]")?;
+            ShapeSpec::Quad {
+                size_m: [s[0], s[1]],
+            }
+        }
+        "sphere" => {
+            let radius_m = raw.radius_m.unwrap_or(0.5);
+            positive(radius_m, &at.key("radius_m"), "radius_m = 0.3", map)?;
+            ShapeSpec::Sphere { radius_m }
+        }
+        _ => {
+            let depth_m = raw.depth_m.unwrap_or(1.6);
+            positive(depth_m, &at.key("depth_m"), "depth_m = 1.6", map)?;
+            let coping_height_m = raw.coping_height_m.unwrap_or(0.25);
+            if coping_height_m <= water.max_crest_m() {
+                return Err(map.error(
+                    &at.key("coping_height_m"),
+                    format!(
+                        "the deck must stand above the highest wave crest ({} m above the level; got {coping_height_m} m)",
+                        water.max_crest_m()
+                    ),
+                    "raise it, e.g. coping_height_m = 0.25, or lower the waves' amplitudes",
+                ));
+            }
+            let deck_width_m = raw.deck_width_m.unwrap_or(3.0);
+            positive(
+                deck_width_m,
+                &at.key("deck_width_m"),
+                "deck_width_m = 3.0",
+                map,
+            )?;
+            let floor_texture = texture(
+                raw.floor_texture.as_ref(),
+                default_floor_tiles(),
+                &at.key("floor_texture"),
+                map,
+            )?;
+            let deck_texture = texture(
+                raw.deck_texture.as_ref(),
+                default_deck_stone(),
+                &at.key("deck_texture"),
+                map,
+            )?;
+            ShapeSpec::Pool {
+                depth_m,
+                coping_height_m,
+                deck_width_m,
+                floor_texture,
+                deck_texture,
+            }
+        }
+    };
+    let default_texture = match shape {
+        ShapeSpec::Pool { .. } => default_wall_tiles(),
+        _ => TextureSpec::Solid {
+            color_srgb: [0.8, 0.8, 0.8],
+        },
+    };
+    let texture = texture(
+        raw.texture.as_ref(),
+        default_texture,
+        &at.key("texture"),
+        map,
+    )?;
+    let scale = raw.scale.unwrap_or([1.0; 3]);
+    if scale.iter().any(|&s| s <= 0.0) {
+        return Err(map.error(
+            &at.key("scale"),
+            format!("scale factors must be positive (got {scale:?}); a mirror would turn the mesh inside out"),
+            "set e.g. scale = [1.0, 1.0, 1.0]",
+        ));
+    }
+    Ok(ObjectSpec {
+        name: raw
+            .name
+            .clone()
+            .unwrap_or_else(|| format!("{shape_name}{index}")),
+        shape,
+        translate_m: raw.translate.unwrap_or([0.0; 3]),
+        rotate_deg: raw.rotate_deg.unwrap_or([0.0; 3]),
+        scale,
+        max_edge_m,
+        texture,
+        tint_srgb: color(raw.tint, [1.0; 3], &at.key("tint"), map)?,
+    })
+}
+
+/// A texture table: its kind is stated, implied by `image`, or the slot's default kind; keys it does
+/// not state take the default's values when the kinds agree.
+fn texture(
+    raw: Option<&RawTexture>,
+    default: TextureSpec,
+    at: &KeyPath,
+    map: &SourceMap<'_>,
+) -> Result<TextureSpec> {
+    let Some(raw) = raw else { return Ok(default) };
+    let kind = match (&raw.kind, &raw.image) {
+        (Some(kind), _) => kind.as_str(),
+        (None, Some(_)) => "image",
+        (None, None) => match default {
+            TextureSpec::Solid { .. } => "solid",
+            TextureSpec::Checker { .. } => "checker",
+            TextureSpec::Tiles(_) => "tiles",
+            TextureSpec::Image(_) => "image",
+        },
+    };
+    if !TEXTURE_KINDS.contains(&kind) {
+        return Err(map.error(
+            &at.key("kind"),
+            format!("unknown texture kind {kind:?}"),
+            format!("use one of {}", quoted_list(&TEXTURE_KINDS)),
+        ));
+    }
+    let kind_keys: &[&str] = match kind {
+        "solid" => &["color"],
+        "checker" => &["color", "color_b", "square_m"],
+        "tiles" => &[
+            "color",
+            "grout_color",
+            "tile_size_m",
+            "grout_width_m",
+            "variation",
+            "accent_color",
+            "accent_fraction",
+            "lane_spacing_m",
+            "lane_width_m",
+            "lane_color",
+            "seed",
+        ],
+        _ => &["image", "size_m"],
+    };
+    for (key, span) in map.keys_in(at) {
+        if key != "kind" && !kind_keys.contains(&key.as_str()) {
+            return Err(map.error_at(
+                span.start,
+                at.key(&key).to_string(),
+                format!("{key} does not apply to a {kind} texture"),
+                format!(
+                    "remove it; a {kind} texture takes {}",
+                    quoted_list(kind_keys)
+                ),
+            ));
+        }
+    }
+    let color_at = |key: &str, value: Option<[f64; 3]>, fallback: [f64; 3]| {
+        color(value, fallback, &at.key(key), map)
+    };
+    match kind {
+        "solid" => {
+            let fallback = match default {
+                TextureSpec::Solid { color_srgb } => color_srgb,
+                _ => [0.8, 0.8, 0.8],
+            };
+            Ok(TextureSpec::Solid {
+                color_srgb: color_at("color", raw.color, fallback)?,
+            })
+        }
+        "checker" => {
+            let square_m = raw.square_m.unwrap_or(0.5);
+            positive(square_m, &at.key("square_m"), "square_m = 0.5", map)?;
+            Ok(TextureSpec::Checker {
+                color_srgb: color_at("color", raw.color, [0.9, 0.9, 0.9])?,
+                color_b_srgb: color_at("color_b", raw.color_b, [0.15, 0.15, 0.15])?,
+                square_m,
+            })
+        }
+        "tiles" => {
+            let base = match default {
+                TextureSpec::Tiles(tiles) => tiles,
+                _ => match default_wall_tiles() {
+                    TextureSpec::Tiles(tiles) => tiles,
+                    _ => unreachable!("wall tiles are tiles"),
+                },
+            };
+            let tile_size_m = raw.tile_size_m.unwrap_or(base.tile_size_m);
+            positive(
+                tile_size_m,
+                &at.key("tile_size_m"),
+                "tile_size_m = 0.125",
+                map,
+            )?;
+            let grout_width_m = raw.grout_width_m.unwrap_or(base.grout_width_m);
+            if !(0.0..tile_size_m).contains(&grout_width_m) {
+                return Err(map.error(
+                    &at.key("grout_width_m"),
+                    format!("must be at least 0 and less than the tile size {tile_size_m} m (got {grout_width_m})"),
+                    "set e.g. grout_width_m = 0.004",
+                ));
+            }
+            let variation = raw.variation.unwrap_or(base.variation);
+            let accent_fraction = raw.accent_fraction.unwrap_or(base.accent_fraction);
+            for (key, value) in [
+                ("variation", variation),
+                ("accent_fraction", accent_fraction),
+            ] {
+                if !(0.0..=1.0).contains(&value) {
+                    return Err(map.error(
+                        &at.key(key),
+                        format!("must be between 0 and 1 (got {value})"),
+                        format!("set e.g. {key} = 0.1"),
+                    ));
+                }
+            }
+            let base_lanes = base.lanes.clone();
+            let lanes = match raw
+                .lane_spacing_m
+                .or(base_lanes.as_ref().map(|l| l.spacing_m))
+            {
+                // lane_spacing_m = 0 turns a default's lanes off.
+                None => None,
+                Some(spacing) if spacing == 0.0 && raw.lane_spacing_m.is_some() => None,
+                Some(spacing_m) => {
+                    if spacing_m < tile_size_m {
+                        return Err(map.error(
+                            &at.key("lane_spacing_m"),
+                            format!("lanes must be at least a tile apart (got {spacing_m} m for {tile_size_m} m tiles)"),
+                            "set e.g. lane_spacing_m = 2.5, or 0 for no lanes",
+                        ));
+                    }
+                    let width_m = raw
+                        .lane_width_m
+                        .or(base_lanes.as_ref().map(|l| l.width_m))
+                        .unwrap_or(0.25);
+                    if !(width_m > 0.0 && width_m < spacing_m) {
+                        return Err(map.error(
+                            &at.key("lane_width_m"),
+                            format!("must be positive and less than the lane spacing {spacing_m} m (got {width_m})"),
+                            "set e.g. lane_width_m = 0.25",
+                        ));
+                    }
+                    let fallback = base_lanes
+                        .as_ref()
+                        .map_or([0.04, 0.10, 0.32], |l| l.color_srgb);
+                    Some(LaneSpec {
+                        spacing_m,
+                        width_m,
+                        color_srgb: color_at("lane_color", raw.lane_color, fallback)?,
+                    })
+                }
+            };
+            Ok(TextureSpec::Tiles(TilesSpec {
+                color_srgb: color_at("color", raw.color, base.color_srgb)?,
+                grout_color_srgb: color_at("grout_color", raw.grout_color, base.grout_color_srgb)?,
+                tile_size_m,
+                grout_width_m,
+                variation,
+                accent_color_srgb: color_at(
+                    "accent_color",
+                    raw.accent_color,
+                    base.accent_color_srgb,
+                )?,
+                accent_fraction,
+                lanes,
+                seed: raw.seed.unwrap_or(base.seed),
+            }))
+        }
+        _ => {
+            let image_at = at.key("image");
+            let Some(written) = &raw.image else {
+                return Err(map.error(
+                    at,
+                    "an image texture needs a file",
+                    "add image = \"textures/tiles.png\"",
+                ));
+            };
+            let folder = map.file.parent().unwrap_or(Path::new(""));
+            let path = folder.join(written);
+            if !path.is_file() {
+                return Err(map.error(
+                    &image_at,
+                    format!(
+                        "texture image {written:?} not found (looked for {})",
+                        path.display()
+                    ),
+                    "check the path, which is relative to the scene file's folder",
+                ));
+            }
+            let size_m = raw.size_m.unwrap_or([1.0, 1.0]);
+            if size_m.iter().any(|&s| s <= 0.0) {
+                return Err(map.error(
+                    &at.key("size_m"),
+                    format!(
+                        "the metres one copy of the image covers must be positive (got {size_m:?})"
+                    ),
+                    "set e.g. size_m = [1.0, 1.0]",
+                ));
+            }
+            let span = map.span_of(&image_at);
+            let (line, column) = super::error::line_column_of(map.text, span.start);
+            Ok(TextureSpec::Image(ImageSpec {
+                path,
+                size_m,
+                source: SourceRef {
+                    file: map.file.to_path_buf(),
+                    line,
+                    column,
+                    key: image_at.to_string(),
+                },
+            }))
+        }
+    }
+}
+
+/// An sRGB colour in 0..=1 (the file's convention), or its default.
+fn color(
+    value: Option<[f64; 3]>,
+    default: [f64; 3],
+    at: &KeyPath,
+    map: &SourceMap<'_>,
+) -> Result<[f64; 3]> {
+    let c = value.unwrap_or(default);
+    if c.iter().any(|v| !(0.0..=1.0).contains(v)) {
+        return Err(map.error(
+            at,
+            format!("colour components are sRGB between 0 and 1 (got {c:?})"),
+            "scale it into 0..1 (use the intensity keys for brightness)",
+        ));
+    }
+    Ok(c)
+}
+
+fn positive(value: f64, at: &KeyPath, example: &str, map: &SourceMap<'_>) -> Result<()> {
+    if value > 0.0 {
+        Ok(())
+    } else {
+        Err(map.error(
+            at,
+            format!("must be positive (got {value})"),
+            format!("set e.g. {example}"),
+        ))
+    }
+}
+
+fn non_negative(value: f64, at: &KeyPath, example: &str, map: &SourceMap<'_>) -> Result<()> {
+    if value >= 0.0 {
+        Ok(())
+    } else {
+        Err(map.error(
+            at,
+            format!("cannot be negative (got {value})"),
+            format!("set e.g. {example}"),
+        ))
+    }
+}
+
+fn max_edge(value: f64, at: &KeyPath, map: &SourceMap<'_>) -> Result<f64> {
+    if value >= MIN_MAX_EDGE_M {
+        Ok(value)
+    } else {
+        Err(map.error(
+            at,
+            format!("the tessellation spacing must be at least {MIN_MAX_EDGE_M} m (got {value})"),
+            "set e.g. max_edge_m = 0.1",
+        ))
+    }
+}
+
+fn quoted_list(items: &[&str]) -> String {
+    items
+        .iter()
+        .map(|s| format!("{s:?}"))
+        .collect::<Vec<_>>()
+        .join(", ")
+}

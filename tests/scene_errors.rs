@@ -1,0 +1,211 @@
+//! Bad scene input: every case must give a one-paragraph `SceneError` naming the file, the line and
+//! column of the offending text, and the key's path.
+
+use std::path::{Path, PathBuf};
+
+use snell::scene::{Scene, SceneError};
+
+/// Parses `text` as if it were `dir/bad.toml` and returns the error it must produce.
+fn error_of(text: &str, dir: &Path) -> SceneError {
+    let path = dir.join("bad.toml");
+    match Scene::parse(text, &path) {
+        Ok(_) => panic!("scene was accepted:\n{text}"),
+        Err(e) => e,
+    }
+}
+
+/// Asserts the error names the file, points at `line:column`, names `key`, and mentions `needle`.
+fn assert_error(text: &str, line: usize, column: usize, key: &str, needle: &str) -> String {
+    let dir = PathBuf::from("scenes");
+    let error = error_of(text, &dir);
+    let message = error.to_string();
+    let location = format!("{}:{line}:{column}: ", dir.join("bad.toml").display());
+    assert!(
+        message.starts_with(&location),
+        "expected {location:?} at the start of:\n{message}"
+    );
+    assert!(message.contains(key), "expected key {key:?} in:\n{message}");
+    assert!(
+        message.contains(needle),
+        "expected {needle:?} in:\n{message}"
+    );
+    assert!(
+        !message.contains('\n'),
+        "the message must be one paragraph:\n{message}"
+    );
+    assert_eq!(error.line_column(), Some((line, column)));
+    message
+}
+
+#[test]
+fn malformed_toml() {
+    // The second `=` is where the parser gives up.
+    let message = assert_error("[water]\nlevel_m = = 0.0\n", 2, 11, "", "malformed TOML");
+    assert!(message.contains("fix the syntax"));
+}
+
+#[test]
+fn unclosed_table_header() {
+    assert_error(
+        "name = \"x\"\n[water\nlevel_m = 0.0\n",
+        2,
+        7,
+        "",
+        "malformed TOML",
+    );
+}
+
+#[test]
+fn unknown_key() {
+    let message = assert_error(
+        "[water]\nlevle_m = 0.0\n",
+        2,
+        1,
+        "water.levle_m",
+        "unknown field `levle_m`",
+    );
+    assert!(message.contains("correct its spelling"));
+}
+
+#[test]
+fn unknown_key_in_an_array_of_tables() {
+    let text = "[[object]]\nshape = \"box\"\n\n[[object]]\nshape = \"sphere\"\nradius = 0.3\n";
+    assert_error(text, 6, 1, "object[1].radius", "unknown field `radius`");
+}
+
+#[test]
+fn key_of_another_shape() {
+    let text = "[[object]]\nshape = \"box\"\nradius_m = 0.3\n";
+    assert_error(
+        text,
+        3,
+        1,
+        "object[0].radius_m",
+        "does not apply to shape = \"box\"",
+    );
+}
+
+#[test]
+fn resolution_zero() {
+    let text = "name = \"t\"\n\n[water]\nresolution = [0, 64]\n";
+    let message = assert_error(text, 4, 14, "water.resolution", "at least 1");
+    assert!(
+        message.contains("(got [0, 64])") && message.contains("set e.g. resolution = [128, 64]")
+    );
+}
+
+#[test]
+fn index_of_refraction_not_positive() {
+    assert_error(
+        "[water]\nn_below = 0.0\n",
+        2,
+        11,
+        "water.n_below",
+        "must be positive",
+    );
+    assert_error(
+        "[water]\nn_above = -1\n",
+        2,
+        11,
+        "water.n_above",
+        "must be positive",
+    );
+}
+
+#[test]
+fn nan_and_infinity() {
+    let text = "[[water.wave]]\namplitude_m = nan\nwavelength_m = 2.0\n";
+    assert_error(text, 2, 15, "water.wave[0].amplitude_m", "finite");
+    assert_error(
+        "[[camera]]\neye = [0, inf, -4]\ntarget = [0, 0, 0]\n",
+        2,
+        11,
+        "camera[0].eye[1]",
+        "finite",
+    );
+    assert_error("[timeline]\nfps = -inf\n", 2, 7, "timeline.fps", "finite");
+}
+
+#[test]
+fn missing_texture_image() {
+    let text = "[[object]]\nshape = \"box\"\ntexture = { image = \"no-such.png\" }\n";
+    let message = assert_error(text, 3, 21, "object[0].texture.image", "not found");
+    assert!(message.contains("no-such.png"));
+}
+
+#[test]
+fn undecodable_texture_image_fails_when_building() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("broken.png"), b"not a png at all").unwrap();
+    let path = dir.path().join("scene.toml");
+    let text = "[[object]]\nshape = \"quad\"\n\n[object.texture]\nimage = \"broken.png\"\n";
+    let scene = Scene::parse(text, &path).expect("the file exists, so parsing passes");
+    let message = scene.build_objects().unwrap_err().to_string();
+    let location = format!("{}:5:9: ", path.display());
+    assert!(
+        message.starts_with(&location),
+        "expected {location:?} at the start of:\n{message}"
+    );
+    assert!(
+        message.contains("object[0].texture.image") && message.contains("broken.png"),
+        "{message}"
+    );
+}
+
+#[test]
+fn keyframes_out_of_order() {
+    let text = "[[camera]]\nframe = 10\neye = [0, 2, -4]\ntarget = [0, 0, 0]\n\n\
+                [[camera]]\nframe = 5\neye = [0, 2, -4]\ntarget = [0, 0, 0]\n";
+    assert_error(text, 7, 9, "camera[1].frame", "increasing time order");
+}
+
+#[test]
+fn empty_frame_range_and_bad_fps() {
+    assert_error(
+        "[timeline]\nframes = [48, 1]\n",
+        2,
+        10,
+        "timeline.frames",
+        "empty",
+    );
+    assert_error("[timeline]\nfps = 0\n", 2, 7, "timeline.fps", "more than 0");
+}
+
+#[test]
+fn unknown_shape() {
+    let message = assert_error(
+        "[[object]]\nshape = \"ball\"\n",
+        2,
+        9,
+        "object[0].shape",
+        "unknown shape",
+    );
+    assert!(message.contains("\"sphere\""));
+}
+
+#[test]
+fn camera_under_water() {
+    let text = "[[camera]]\neye = [0, -0.5, 0]\ntarget = [0, -1, 1]\n";
+    assert_error(text, 2, 7, "camera[0].eye", "under the water");
+}
+
+#[test]
+fn wrong_type() {
+    assert_error(
+        "[water]\nresolution = \"high\"\n",
+        2,
+        14,
+        "water.resolution",
+        "invalid type",
+    );
+}
+
+#[test]
+fn unreadable_file_names_it() {
+    let path = Path::new("scenes/does-not-exist.toml");
+    let message = Scene::load(path).unwrap_err().to_string();
+    assert!(
+        message.starts_with("scenes/does-not-exist.toml: cannot read"),
+        "{message}"
+    );
+}
