@@ -325,6 +325,7 @@ fn sort_header_attributes(bytes: &mut [u8]) -> Result<(), String> {
 }
 
 /// Reads a frame written by [`write_frame_exr`]: pixels and the snell header attributes.
+/// `flags` comes back as the four [`flag_bits`] of the flag channels; other bits are not stored.
 pub fn read_frame_exr(path: &Path) -> Result<(RenderedFrame, ReadMeta), OutputError> {
     let read_error = |cause: String| OutputError::Read {
         path: path.to_path_buf(),
