@@ -1,0 +1,277 @@
+//! The per-frame report `DIR/report.jsonl`: receives one [`FrameReport`] per rendered frame and keeps
+//! the file as one JSON object per line, sorted by frame. Rendering a subset of frames into a
+//! directory that already has a report replaces the rows of those frames and keeps the others.
+//! After every frame the whole file is rewritten atomically (temporary file, sync, rename), so an
+//! interrupted render leaves a complete report of the frames finished so far.
+
+use std::collections::{BTreeMap, HashMap};
+use std::fs;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use super::{ensure_output_dir, write_atomically, OutputError};
+
+pub const REPORT_FILE_NAME: &str = "report.jsonl";
+
+/// One report row.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FrameReport {
+    pub frame: u32,
+    pub time_secs: f64,
+    /// How the image drawn in a convergence zone is chosen, in words.
+    pub convergence_policy: String,
+    /// Vertex and triangle counts per flag, as the refraction stage serialises them.
+    pub counts: serde_json::Value,
+    /// Wall-clock seconds per pipeline stage.
+    pub stage_secs: BTreeMap<String, f64>,
+    /// Width and height in pixels.
+    pub size: [u32; 2],
+    pub method: String,
+}
+
+/// Keeps `DIR/report.jsonl` up to date frame by frame.
+#[derive(Debug)]
+pub struct ReportWriter {
+    path: PathBuf,
+    /// Serialised rows by frame. Rows read from an existing report are kept verbatim, so a report
+    /// written by another snell version keeps fields this version does not know.
+    rows_by_frame: BTreeMap<u32, String>,
+}
+
+impl ReportWriter {
+    /// Opens the report of `dir` (creating `dir` if needed), loading the rows already there.
+    pub fn create(dir: &Path) -> Result<Self, OutputError> {
+        ensure_output_dir(dir)?;
+        let path = dir.join(REPORT_FILE_NAME);
+        let rows_by_frame = match fs::read_to_string(&path) {
+            Ok(contents) => parse_rows(&path, &contents)?,
+            Err(error) if error.kind() == std::io::ErrorKind::NotFound => BTreeMap::new(),
+            Err(error) => {
+                return Err(OutputError::Read {
+                    path,
+                    cause: error.to_string(),
+                })
+            }
+        };
+        Ok(Self {
+            path,
+            rows_by_frame,
+        })
+    }
+
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Adds (or replaces) the row of `report.frame` and rewrites the file, flushed and synced.
+    pub fn append(&mut self, report: &FrameReport) -> Result<(), OutputError> {
+        let row = serde_json::to_string(report).map_err(|error| OutputError::Write {
+            path: self.path.clone(),
+            cause: error.to_string(),
+        })?;
+        let previous = self.rows_by_frame.insert(report.frame, row);
+        let result = self.rewrite();
+        if result.is_err() {
+            // Keep memory consistent with the file that is still on disk.
+            match previous {
+                Some(previous) => self.rows_by_frame.insert(report.frame, previous),
+                None => self.rows_by_frame.remove(&report.frame),
+            };
+        }
+        result
+    }
+
+    fn rewrite(&self) -> Result<(), OutputError> {
+        write_atomically(&self.path, |file| {
+            let mut contents = String::new();
+            for row in self.rows_by_frame.values() {
+                contents.push_str(row);
+                contents.push('\n');
+            }
+            file.write_all(contents.as_bytes())
+                .map_err(|error| error.to_string())?;
+            file.flush().map_err(|error| error.to_string())
+        })
+    }
+}
+
+fn parse_rows(path: &Path, contents: &str) -> Result<BTreeMap<u32, String>, OutputError> {
+    let mut rows_by_frame = BTreeMap::new();
+    let mut line_of_frame: HashMap<u32, usize> = HashMap::new();
+    for (index, line) in contents.lines().enumerate() {
+        let line_number = index + 1;
+        if line.trim().is_empty() {
+            continue;
+        }
+        let parse_error = |cause: String| OutputError::Parse {
+            path: path.to_path_buf(),
+            line: line_number,
+            cause: format!("{cause}; delete the report or render into another directory"),
+        };
+        let value: serde_json::Value = serde_json::from_str(line)
+            .map_err(|error| parse_error(format!("not a JSON object: {error}")))?;
+        let frame = value
+            .get("frame")
+            .and_then(serde_json::Value::as_u64)
+            .and_then(|frame| u32::try_from(frame).ok())
+            .ok_or_else(|| parse_error("the row has no integer `frame`".into()))?;
+        if let Some(first_line) = line_of_frame.insert(frame, line_number) {
+            return Err(parse_error(format!(
+                "frame {frame} already has a row on line {first_line}"
+            )));
+        }
+        rows_by_frame.insert(frame, line.to_string());
+    }
+    Ok(rows_by_frame)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn report(frame: u32, method: &str) -> FrameReport {
+        FrameReport {
+            frame,
+            time_secs: frame as f64 / 24.0,
+            convergence_policy: "least optical path, then lowest facet index".into(),
+            counts: serde_json::json!({ "vertices": { "convergence": frame * 2 }, "triangles": { "boundary": 1 } }),
+            stage_secs: BTreeMap::from([("refraction".into(), 0.012), ("render".into(), 0.034)]),
+            size: [320, 180],
+            method: method.into(),
+        }
+    }
+
+    fn read_rows(path: &Path) -> Vec<FrameReport> {
+        fs::read_to_string(path)
+            .unwrap()
+            .lines()
+            .map(|line| serde_json::from_str(line).unwrap())
+            .collect()
+    }
+
+    #[test]
+    fn one_row_per_frame_written_as_it_goes() {
+        let temp = tempfile::tempdir().unwrap();
+        let dir = temp.path().join("out");
+        let mut writer = ReportWriter::create(&dir).unwrap();
+        writer.append(&report(0, "geometric")).unwrap();
+        // Readable after every frame, not only at the end.
+        assert_eq!(read_rows(writer.path()), vec![report(0, "geometric")]);
+        writer.append(&report(1, "geometric")).unwrap();
+        assert_eq!(
+            read_rows(&dir.join("report.jsonl")),
+            vec![report(0, "geometric"), report(1, "geometric")]
+        );
+        let names: Vec<_> = fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert_eq!(
+            names,
+            vec![std::ffi::OsString::from("report.jsonl")],
+            "no temporary file left"
+        );
+    }
+
+    #[test]
+    fn rendering_a_subset_replaces_those_rows_and_keeps_the_others_sorted() {
+        let temp = tempfile::tempdir().unwrap();
+        let mut first_run = ReportWriter::create(temp.path()).unwrap();
+        for frame in [0, 1, 2, 3] {
+            first_run.append(&report(frame, "geometric")).unwrap();
+        }
+        drop(first_run);
+        // A foreign row (another version, an extra field) must survive untouched.
+        let path = temp.path().join(REPORT_FILE_NAME);
+        let mut contents = fs::read_to_string(&path).unwrap();
+        contents.push_str("{\"frame\":9,\"future_field\":true}\n");
+        fs::write(&path, contents).unwrap();
+
+        let mut second_run = ReportWriter::create(temp.path()).unwrap();
+        second_run.append(&report(2, "raytrace")).unwrap();
+        second_run.append(&report(5, "raytrace")).unwrap();
+        second_run.append(&report(1, "raytrace")).unwrap();
+
+        let lines: Vec<String> = fs::read_to_string(&path)
+            .unwrap()
+            .lines()
+            .map(String::from)
+            .collect();
+        let frames: Vec<u64> = lines
+            .iter()
+            .map(|line| {
+                serde_json::from_str::<serde_json::Value>(line).unwrap()["frame"]
+                    .as_u64()
+                    .unwrap()
+            })
+            .collect();
+        assert_eq!(frames, vec![0, 1, 2, 3, 5, 9]);
+        let method =
+            |line: &str| serde_json::from_str::<serde_json::Value>(line).unwrap()["method"].clone();
+        assert_eq!(method(&lines[0]), "geometric");
+        assert_eq!(method(&lines[1]), "raytrace");
+        assert_eq!(method(&lines[2]), "raytrace");
+        assert_eq!(method(&lines[3]), "geometric");
+        assert_eq!(lines[5], "{\"frame\":9,\"future_field\":true}");
+    }
+
+    #[test]
+    fn row_has_the_specified_fields() {
+        let value = serde_json::to_value(report(3, "geometric")).unwrap();
+        let mut keys: Vec<&str> = value
+            .as_object()
+            .unwrap()
+            .keys()
+            .map(String::as_str)
+            .collect();
+        keys.sort();
+        assert_eq!(
+            keys,
+            [
+                "convergence_policy",
+                "counts",
+                "frame",
+                "method",
+                "size",
+                "stage_secs",
+                "time_secs"
+            ]
+        );
+        assert_eq!(value["counts"]["vertices"]["convergence"], 6);
+    }
+
+    #[test]
+    fn corrupt_existing_report_names_file_and_line() {
+        let temp = tempfile::tempdir().unwrap();
+        let path = temp.path().join(REPORT_FILE_NAME);
+        fs::write(&path, "{\"frame\":0}\nnot json\n").unwrap();
+        let message = ReportWriter::create(temp.path()).unwrap_err().to_string();
+        assert!(
+            message.contains(&format!("{}:2:", path.display())),
+            "{message}"
+        );
+
+        fs::write(&path, "{\"frame\":0}\n{\"frame\":0}\n").unwrap();
+        let message = ReportWriter::create(temp.path()).unwrap_err().to_string();
+        assert!(
+            message.contains("frame 0 already has a row on line 1"),
+            "{message}"
+        );
+    }
+
+    #[test]
+    fn unwritable_directory_is_a_clear_error() {
+        let temp = tempfile::tempdir().unwrap();
+        let regular_file = temp.path().join("file");
+        fs::write(&regular_file, b"x").unwrap();
+        let message = ReportWriter::create(&regular_file.join("out"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            message.contains("a path component is a regular file"),
+            "{message}"
+        );
+    }
+}
