@@ -145,11 +145,10 @@ impl RenderJob {
         let (objects, textures) = scene.build_objects()?;
         let waves = WaveField {
             level_m: scene.water.level_m,
-            waves: scene.water.waves.iter().map(|w| w.to_wave()).collect::<Vec<Wave>>(),
+            waves: scene.water.waves.iter().map(wave_from_spec).collect(),
         };
         let camera_track = CameraTrack::new(scene.camera_keys.clone());
-        let amplitude_sum: f64 = waves.waves.iter().map(|w| w.amplitude_m.abs()).sum();
-        let top = (waves.level_m + amplitude_sum) as f32 + 1e-3;
+        let top = waves.height_bounds_m().1 as f32 + 1e-3;
         let bottom = objects
             .iter()
             .flat_map(|o| o.mesh.positions.iter().map(|p| p.y))
@@ -290,7 +289,7 @@ impl RenderJob {
         write_png: bool,
         progress: bool,
     ) -> Result<RenderSummary, SnellError> {
-        crate::output::create_output_dir(out_dir)?;
+        crate::output::ensure_output_dir(out_dir)?;
         let mut renderer = Renderer::new()?;
         self.upload_textures(&mut renderer)?;
         let mut report = crate::output::report::ReportWriter::create(out_dir)?;
@@ -306,7 +305,7 @@ impl RenderJob {
             crate::output::exr::write_frame_exr(&path, &rendered, &self.frame_meta(&refracted))?;
             if write_png {
                 let png = crate::output::tonemap::tonemap_srgb8(&rendered, 0.0);
-                crate::output::tonemap::save_png_atomic(&png, &path.with_extension("png"))?;
+                crate::output::tonemap::save_png_atomic(&path.with_extension("png"), &png)?;
             }
             refracted.stage_secs.insert("write".to_string(), clock.elapsed().as_secs_f64());
             report.append(&self.frame_report(&refracted, width, height))?;
@@ -390,6 +389,17 @@ impl RenderJob {
         let adapter = crate::gpu::probe_adapter().unwrap_or_else(|e| format!("none usable: {e}"));
         let _ = writeln!(text, "adapter    {adapter}");
         text
+    }
+}
+
+/// The scene file's wave (direction in degrees) as the water stage's wave (unit direction).
+fn wave_from_spec(spec: &crate::scene::WaveSpec) -> Wave {
+    Wave {
+        amplitude_m: spec.amplitude_m,
+        wavelength_m: spec.wavelength_m,
+        direction: spec.direction_xz(),
+        phase_rad: spec.phase_rad,
+        speed_m_per_s: spec.speed_m_per_s,
     }
 }
 

@@ -35,6 +35,15 @@ pub enum OutputError {
     },
 }
 
+impl OutputError {
+    /// Whether the user's choice of output location is at fault (the CLI exits with 2): a directory
+    /// that cannot be created, or an existing report that is not snell's. Failures while writing
+    /// (a full disk, an I/O error) are not.
+    pub fn is_bad_input(&self) -> bool {
+        matches!(self, OutputError::CreateDir { .. } | OutputError::Parse { .. })
+    }
+}
+
 /// Creates `dir` and its parents. When that fails because something on the way is a regular file
 /// (the usual way an output path cannot be created when running as root), the error says which.
 pub fn ensure_output_dir(dir: &Path) -> Result<(), OutputError> {
