@@ -1,2 +1,932 @@
-//! Stage 4, GPU: headless wgpu device, the four passes of ALGORITHM §7, readback. The only module
-//! that touches wgpu. OWNER: gpu helper.
+//! Stage 4, GPU: a headless wgpu device, the passes of ALGORITHM §7, and readback. Receives a
+//! [`FrameDraw`] (vertex lists split above/under water, membrane, materials) and a [`FrameView`]
+//! (camera, light, water); returns a [`RenderedFrame`] (linear beauty, distance, true position,
+//! flags). The only module that touches wgpu.
+//!
+//! All passes share one render pass over four attachments — beauty (Rgba32Float, or Rgba16Float
+//! where float32 cannot be rendered/blended), position (Rgba32Uint: float32 bits of the true world
+//! position in xyz and of the eye distance in w, on every backend), flags (R32Uint) and
+//! depth-stencil — and run as eight draws:
+//! 1. sky (full-screen, far plane), 2. above-water geometry (true positions, depth test),
+//! 3. membrane marks stencil = 1 where visible (no colour), 4. inside the stencil a full-screen
+//!    triangle pushes depth to far and writes the deep-water colour, 5. under-water geometry at
+//!    virtual positions with true attributes, 6. inside the stencil depth is pushed to far again and
+//!    7. the membrane is redrawn depth-only, so that 8. the Fresnel blend (depth Equal) touches only
+//!    the front-most membrane fragment of each pixel even where a crest hides a trough.
+
+mod device;
+pub mod shaders;
+pub mod shading;
+mod textures;
+
+use glam::{Mat4, Vec3};
+
+use crate::draw::{FrameDraw, FrameView, MembraneVertex, RenderedFrame, TrueVertex, VirtualVertex};
+use crate::mesh::Texture;
+
+use device::{GpuContext, FLAGS_FORMAT, POSITION_FORMAT};
+pub use device::probe_adapter;
+
+/// Most materials one frame can use: the uniform array in `shaders/common.inc.wgsl` (16 bytes
+/// each; 16 KiB is the uniform binding size every backend guarantees).
+pub const MAX_MATERIALS: usize = 1024;
+
+#[derive(Debug, thiserror::Error)]
+pub enum GpuError {
+    #[error(
+        "no graphics adapter found (backends {backends}{}; adapters present: {found}); \
+         on a machine without a GPU install Mesa (libegl-mesa0 for GL, mesa-vulkan-drivers for Vulkan)",
+        if wanted_name.is_empty() { String::new() } else { format!(", WGPU_ADAPTER_NAME contains \"{wanted_name}\"") }
+    )]
+    NoAdapter { backends: String, wanted_name: String, found: String },
+    #[error("adapter {adapter} refused to create a device: {source}")]
+    RequestDevice {
+        adapter: String,
+        #[source]
+        source: wgpu::RequestDeviceError,
+    },
+    #[error("wgpu reported an error while {stage}: {message}")]
+    Wgpu { stage: &'static str, message: String },
+    #[error("waiting for the GPU failed: {0}")]
+    Poll(#[from] wgpu::PollError),
+    #[error("reading the rendered frame back failed: {0}")]
+    Readback(String),
+    #[error("render size {width}x{height} is not possible: each side must be between 1 and {max} pixels")]
+    BadSize { width: u32, height: u32, max: u32 },
+    #[error("texture {index} (\"{name}\") is {width}x{height} but holds {bytes} bytes; it needs width * height * 4 > 0")]
+    BadTexture { index: usize, name: String, width: u32, height: u32, bytes: usize },
+    #[error("{count} textures are more than this adapter's {max} texture array layers")]
+    TooManyTextures { count: usize, max: usize },
+    #[error("{count} materials are more than the renderer's {max}")]
+    TooManyMaterials { count: usize, max: usize },
+    #[error("material {material} uses texture {texture}, but only {count} textures were uploaded")]
+    TextureOutOfRange { material: usize, texture: u32, count: u32 },
+    #[error("{list}[{index}] refers to {value}, but there are only {count}")]
+    IndexOutOfRange { list: &'static str, index: usize, value: u32, count: usize },
+    #[error("under_vertices holds {count} vertices, not a whole number of triangles")]
+    PartialTriangle { count: usize },
+}
+
+/// Frame constants as `shaders/common.inc.wgsl` declares `Frame`.
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct FrameUniform {
+    clip_from_world: [[f32; 4]; 4],
+    world_from_clip: [[f32; 4]; 4],
+    eye: [f32; 4],
+    viewport: [f32; 4],
+    sky_zenith: [f32; 4],
+    sky_horizon: [f32; 4],
+    sun_direction: [f32; 4],
+    sun_color: [f32; 4],
+    ambient: [f32; 4],
+    absorption_per_m: [f32; 4],
+    scatter_color: [f32; 4],
+    sun_in_water: [f32; 4],
+    water: [f32; 4],
+}
+
+fn vec4(v: Vec3, w: f32) -> [f32; 4] {
+    [v.x, v.y, v.z, w]
+}
+
+impl FrameUniform {
+    fn new(view: &FrameView, width: u32, height: u32) -> FrameUniform {
+        let clip_from_world: Mat4 = view.camera.clip_from_world(width, height);
+        let lighting = &view.lighting;
+        let water = &view.water;
+        let sun_in_water = shading::sun_direction_in_water(lighting, water);
+        FrameUniform {
+            clip_from_world: clip_from_world.to_cols_array_2d(),
+            world_from_clip: clip_from_world.inverse().to_cols_array_2d(),
+            eye: vec4(view.camera.eye, 1.0),
+            viewport: [width as f32, height as f32, 0.0, 0.0],
+            sky_zenith: vec4(lighting.sky_zenith_linear, 0.0),
+            sky_horizon: vec4(lighting.sky_horizon_linear, 0.0),
+            sun_direction: vec4(lighting.sun_direction, shading::sun_disk_cos_radius(lighting)),
+            sun_color: vec4(lighting.sun_color_linear, shading::sun_disk_gain(lighting)),
+            ambient: vec4(lighting.ambient_linear, 0.0),
+            absorption_per_m: vec4(water.absorption_per_m, 0.0),
+            scatter_color: vec4(water.scatter_color_linear, 0.0),
+            sun_in_water: match sun_in_water {
+                Some(direction) => vec4(direction, 1.0),
+                None => [0.0, 1.0, 0.0, 0.0],
+            },
+            water: [water.n_above, water.n_below, water.mean_level_m, 0.0],
+        }
+    }
+}
+
+/// A GPU buffer that keeps its size across frames and grows (to a power of two) when a frame needs more.
+struct GrowingBuffer {
+    label: &'static str,
+    usage: wgpu::BufferUsages,
+    buffer: Option<wgpu::Buffer>,
+}
+
+impl GrowingBuffer {
+    fn new(label: &'static str, usage: wgpu::BufferUsages) -> GrowingBuffer {
+        GrowingBuffer { label, usage: usage | wgpu::BufferUsages::COPY_DST, buffer: None }
+    }
+
+    fn upload(&mut self, device: &wgpu::Device, queue: &wgpu::Queue, bytes: &[u8]) {
+        let needed = bytes.len() as u64;
+        if self.buffer.as_ref().is_none_or(|buffer| buffer.size() < needed) {
+            self.buffer = Some(device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(self.label),
+                size: needed.next_power_of_two().max(4096),
+                usage: self.usage,
+                mapped_at_creation: false,
+            }));
+        }
+        if let Some(buffer) = &self.buffer {
+            if !bytes.is_empty() {
+                queue.write_buffer(buffer, 0, bytes);
+            }
+        }
+    }
+}
+
+/// Row pitch of a texture copy: `COPY_BYTES_PER_ROW_ALIGNMENT` (256) aligned.
+fn padded_bytes_per_row(width: u32, bytes_per_pixel: u32) -> u32 {
+    let unpadded = width * bytes_per_pixel;
+    unpadded.div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT
+}
+
+/// The attachments of one frame size and the buffer they are read back through.
+struct FrameTargets {
+    width: u32,
+    height: u32,
+    beauty: wgpu::Texture,
+    position: wgpu::Texture,
+    flags: wgpu::Texture,
+    beauty_view: wgpu::TextureView,
+    position_view: wgpu::TextureView,
+    flags_view: wgpu::TextureView,
+    depth_stencil_view: wgpu::TextureView,
+    beauty_bytes_per_pixel: u32,
+    readback: wgpu::Buffer,
+    /// Byte offsets of the beauty, position and flags images in `readback`.
+    readback_offsets: [u64; 3],
+}
+
+impl FrameTargets {
+    fn new(context: &GpuContext, width: u32, height: u32) -> FrameTargets {
+        let device = &context.device;
+        let size = wgpu::Extent3d { width, height, depth_or_array_layers: 1 };
+        let target = |label: &str, format: wgpu::TextureFormat, usage: wgpu::TextureUsages| {
+            device.create_texture(&wgpu::TextureDescriptor {
+                label: Some(label),
+                size,
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage,
+                view_formats: &[],
+            })
+        };
+        let colour_usage = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC;
+        let beauty = target("beauty", context.formats.beauty, colour_usage);
+        let position = target("position", POSITION_FORMAT, colour_usage);
+        let flags = target("flags", FLAGS_FORMAT, colour_usage);
+        let depth_stencil =
+            target("depth-stencil", context.formats.depth_stencil, wgpu::TextureUsages::RENDER_ATTACHMENT);
+        let beauty_bytes_per_pixel = context.formats.beauty.block_copy_size(None).unwrap_or(16);
+
+        let beauty_bytes = padded_bytes_per_row(width, beauty_bytes_per_pixel) as u64 * height as u64;
+        let position_bytes = padded_bytes_per_row(width, 16) as u64 * height as u64;
+        let flags_bytes = padded_bytes_per_row(width, 4) as u64 * height as u64;
+        // Every region starts on a padded row, so the offsets keep the 256-byte alignment.
+        let readback_offsets = [0, beauty_bytes, beauty_bytes + position_bytes];
+        let readback = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("readback"),
+            size: beauty_bytes + position_bytes + flags_bytes,
+            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+            mapped_at_creation: false,
+        });
+        let view = |texture: &wgpu::Texture| texture.create_view(&wgpu::TextureViewDescriptor::default());
+        FrameTargets {
+            width,
+            height,
+            beauty_view: view(&beauty),
+            position_view: view(&position),
+            flags_view: view(&flags),
+            depth_stencil_view: view(&depth_stencil),
+            beauty,
+            position,
+            flags,
+            beauty_bytes_per_pixel,
+            readback,
+            readback_offsets,
+        }
+    }
+
+    fn copy_to_readback(&self, encoder: &mut wgpu::CommandEncoder) {
+        let size = wgpu::Extent3d { width: self.width, height: self.height, depth_or_array_layers: 1 };
+        let images = [(&self.beauty, self.beauty_bytes_per_pixel), (&self.position, 16), (&self.flags, 4)];
+        for ((texture, bytes_per_pixel), offset) in images.into_iter().zip(self.readback_offsets) {
+            encoder.copy_texture_to_buffer(
+                wgpu::TexelCopyTextureInfo {
+                    texture,
+                    mip_level: 0,
+                    origin: wgpu::Origin3d::ZERO,
+                    aspect: wgpu::TextureAspect::All,
+                },
+                wgpu::TexelCopyBufferInfo {
+                    buffer: &self.readback,
+                    layout: wgpu::TexelCopyBufferLayout {
+                        offset,
+                        bytes_per_row: Some(padded_bytes_per_row(self.width, bytes_per_pixel)),
+                        rows_per_image: Some(self.height),
+                    },
+                },
+                size,
+            );
+        }
+    }
+}
+
+/// Converts an IEEE half-float to f32 exactly (every half is representable in f32).
+fn f16_bits_to_f32(bits: u16) -> f32 {
+    let sign = if bits & 0x8000 != 0 { -1.0f32 } else { 1.0 };
+    let exponent = (bits >> 10) & 0x1f;
+    let mantissa = (bits & 0x3ff) as f32;
+    match exponent {
+        0 => sign * mantissa * (2.0f32).powi(-24),
+        0x1f if mantissa == 0.0 => sign * f32::INFINITY,
+        0x1f => f32::NAN,
+        _ => sign * (1.0 + mantissa / 1024.0) * (2.0f32).powi(exponent as i32 - 15),
+    }
+}
+
+/// The pipelines of the eight draws, in drawing order.
+struct Pipelines {
+    sky: wgpu::RenderPipeline,
+    above: wgpu::RenderPipeline,
+    membrane_mark: wgpu::RenderPipeline,
+    deep_water: wgpu::RenderPipeline,
+    under: wgpu::RenderPipeline,
+    depth_reset: wgpu::RenderPipeline,
+    membrane_depth: wgpu::RenderPipeline,
+    membrane_fresnel: wgpu::RenderPipeline,
+}
+
+/// Which colour channels a draw writes into (beauty, position, flags).
+struct Writes {
+    beauty: wgpu::ColorWrites,
+    beauty_blend: Option<wgpu::BlendState>,
+    position: wgpu::ColorWrites,
+    flags: wgpu::ColorWrites,
+}
+
+const NO_WRITES: Writes = Writes {
+    beauty: wgpu::ColorWrites::empty(),
+    beauty_blend: None,
+    position: wgpu::ColorWrites::empty(),
+    flags: wgpu::ColorWrites::empty(),
+};
+const ALL_WRITES: Writes =
+    Writes { beauty: wgpu::ColorWrites::ALL, beauty_blend: None, position: wgpu::ColorWrites::ALL, flags: wgpu::ColorWrites::ALL };
+/// Inside the stencil: the position's w (distance) is the membrane's, left for the Fresnel draw.
+const UNDER_WATER_WRITES: Writes = Writes {
+    beauty: wgpu::ColorWrites::ALL,
+    beauty_blend: None,
+    position: wgpu::ColorWrites::COLOR,
+    flags: wgpu::ColorWrites::ALL,
+};
+
+/// Depth and stencil behaviour of a draw.
+struct DepthStencil {
+    depth_write: bool,
+    depth_compare: wgpu::CompareFunction,
+    stencil_compare: wgpu::CompareFunction,
+    stencil_pass: wgpu::StencilOperation,
+}
+
+/// The stencil value that marks "the membrane is visible here".
+const MEMBRANE_STENCIL: u32 = 1;
+
+struct PipelineFactory<'a> {
+    device: &'a wgpu::Device,
+    layout: wgpu::PipelineLayout,
+    beauty_format: wgpu::TextureFormat,
+    depth_stencil_format: wgpu::TextureFormat,
+}
+
+impl PipelineFactory<'_> {
+    #[allow(clippy::too_many_arguments)]
+    fn pipeline(
+        &self,
+        label: &str,
+        module: &wgpu::ShaderModule,
+        vertex_entry: &str,
+        fragment_entry: &str,
+        buffers: &[Option<wgpu::VertexBufferLayout>],
+        writes: Writes,
+        depth_stencil: DepthStencil,
+    ) -> wgpu::RenderPipeline {
+        let stencil_face = wgpu::StencilFaceState {
+            compare: depth_stencil.stencil_compare,
+            fail_op: wgpu::StencilOperation::Keep,
+            depth_fail_op: wgpu::StencilOperation::Keep,
+            pass_op: depth_stencil.stencil_pass,
+        };
+        self.device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some(label),
+            layout: Some(&self.layout),
+            vertex: wgpu::VertexState {
+                module,
+                entry_point: Some(vertex_entry),
+                compilation_options: Default::default(),
+                buffers,
+            },
+            primitive: wgpu::PrimitiveState {
+                topology: wgpu::PrimitiveTopology::TriangleList,
+                // Virtual geometry can mirror a triangle's winding; nothing here is culled.
+                cull_mode: None,
+                ..Default::default()
+            },
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: self.depth_stencil_format,
+                depth_write_enabled: Some(depth_stencil.depth_write),
+                depth_compare: Some(depth_stencil.depth_compare),
+                stencil: wgpu::StencilState { front: stencil_face, back: stencil_face, read_mask: 0xff, write_mask: 0xff },
+                bias: wgpu::DepthBiasState::default(),
+            }),
+            multisample: wgpu::MultisampleState::default(),
+            fragment: Some(wgpu::FragmentState {
+                module,
+                entry_point: Some(fragment_entry),
+                compilation_options: Default::default(),
+                targets: &[
+                    Some(wgpu::ColorTargetState {
+                        format: self.beauty_format,
+                        blend: writes.beauty_blend,
+                        write_mask: writes.beauty,
+                    }),
+                    Some(wgpu::ColorTargetState { format: POSITION_FORMAT, blend: None, write_mask: writes.position }),
+                    Some(wgpu::ColorTargetState { format: FLAGS_FORMAT, blend: None, write_mask: writes.flags }),
+                ],
+            }),
+            multiview_mask: None,
+            cache: None,
+        })
+    }
+}
+
+fn shader_module(device: &wgpu::Device, name: &str) -> Result<wgpu::ShaderModule, GpuError> {
+    let assembled = shaders::assembled_shader(name)
+        .ok_or(GpuError::Wgpu { stage: "looking up a shader", message: format!("no shader module named {name}") })?;
+    Ok(device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some(assembled.name),
+        source: wgpu::ShaderSource::Wgsl(assembled.source.into()),
+    }))
+}
+
+fn create_pipelines(
+    context: &GpuContext,
+    bind_group_layout: &wgpu::BindGroupLayout,
+) -> Result<Pipelines, GpuError> {
+    use wgpu::CompareFunction::{Always, Equal, Less};
+    use wgpu::StencilOperation::{Keep, Replace};
+    let device = &context.device;
+    let factory = PipelineFactory {
+        device,
+        layout: device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("snell passes"),
+            bind_group_layouts: &[Some(bind_group_layout)],
+            immediate_size: 0,
+        }),
+        beauty_format: context.formats.beauty,
+        depth_stencil_format: context.formats.depth_stencil,
+    };
+    let sky_module = shader_module(device, "sky")?;
+    let above_module = shader_module(device, "above")?;
+    let membrane_module = shader_module(device, "membrane")?;
+    let water_clear_module = shader_module(device, "water_clear")?;
+    let under_module = shader_module(device, "under")?;
+
+    let above_layout = wgpu::VertexBufferLayout {
+        array_stride: std::mem::size_of::<TrueVertex>() as u64,
+        step_mode: wgpu::VertexStepMode::Vertex,
+        attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x2, 3 => Uint32],
+    };
+    let under_layout = wgpu::VertexBufferLayout {
+        array_stride: std::mem::size_of::<VirtualVertex>() as u64,
+        step_mode: wgpu::VertexStepMode::Vertex,
+        attributes: &wgpu::vertex_attr_array![
+            0 => Float32x3, 1 => Float32x3, 2 => Float32x3, 3 => Float32x2, 4 => Uint32, 5 => Float32, 6 => Uint32
+        ],
+    };
+    let membrane_layout = wgpu::VertexBufferLayout {
+        array_stride: std::mem::size_of::<MembraneVertex>() as u64,
+        step_mode: wgpu::VertexStepMode::Vertex,
+        attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3],
+    };
+    let inside_stencil = |depth_write, depth_compare| DepthStencil {
+        depth_write,
+        depth_compare,
+        stencil_compare: Equal,
+        stencil_pass: Keep,
+    };
+    let fresnel_blend = wgpu::BlendComponent {
+        src_factor: wgpu::BlendFactor::One,
+        dst_factor: wgpu::BlendFactor::OneMinusSrcAlpha,
+        operation: wgpu::BlendOperation::Add,
+    };
+
+    Ok(Pipelines {
+        sky: factory.pipeline(
+            "sky",
+            &sky_module,
+            "vs_sky",
+            "fs_sky",
+            &[],
+            ALL_WRITES,
+            DepthStencil { depth_write: false, depth_compare: Always, stencil_compare: Always, stencil_pass: Keep },
+        ),
+        above: factory.pipeline(
+            "above water",
+            &above_module,
+            "vs_above",
+            "fs_above",
+            &[Some(above_layout)],
+            ALL_WRITES,
+            DepthStencil { depth_write: true, depth_compare: Less, stencil_compare: Always, stencil_pass: Keep },
+        ),
+        membrane_mark: factory.pipeline(
+            "membrane stencil",
+            &membrane_module,
+            "vs_membrane",
+            "fs_mark",
+            &[Some(membrane_layout.clone())],
+            NO_WRITES,
+            DepthStencil { depth_write: false, depth_compare: Less, stencil_compare: Always, stencil_pass: Replace },
+        ),
+        deep_water: factory.pipeline(
+            "deep water clear",
+            &water_clear_module,
+            "vs_far",
+            "fs_deep_water",
+            &[],
+            UNDER_WATER_WRITES,
+            inside_stencil(true, Always),
+        ),
+        under: factory.pipeline(
+            "under water (virtual)",
+            &under_module,
+            "vs_under",
+            "fs_under",
+            &[Some(under_layout)],
+            UNDER_WATER_WRITES,
+            inside_stencil(true, Less),
+        ),
+        depth_reset: factory.pipeline(
+            "depth reset",
+            &water_clear_module,
+            "vs_far",
+            "fs_depth_only",
+            &[],
+            NO_WRITES,
+            inside_stencil(true, Always),
+        ),
+        membrane_depth: factory.pipeline(
+            "membrane depth",
+            &membrane_module,
+            "vs_membrane",
+            "fs_mark",
+            &[Some(membrane_layout.clone())],
+            NO_WRITES,
+            inside_stencil(true, Less),
+        ),
+        membrane_fresnel: factory.pipeline(
+            "membrane fresnel",
+            &membrane_module,
+            "vs_membrane",
+            "fs_fresnel",
+            &[Some(membrane_layout)],
+            Writes {
+                beauty: wgpu::ColorWrites::ALL,
+                beauty_blend: Some(wgpu::BlendState { color: fresnel_blend, alpha: fresnel_blend }),
+                position: wgpu::ColorWrites::ALPHA,
+                flags: wgpu::ColorWrites::empty(),
+            },
+            inside_stencil(false, Equal),
+        ),
+    })
+}
+
+/// Pops an error scope pushed by [`push_scopes`] and turns what it caught into a [`GpuError`].
+fn pop_scopes(scopes: [wgpu::ErrorScopeGuard; 2], stage: &'static str) -> Result<(), GpuError> {
+    // Scopes pop innermost first.
+    let [out_of_memory, validation] = scopes;
+    let caught = [validation.pop(), out_of_memory.pop()].map(pollster::block_on);
+    match caught.into_iter().flatten().next() {
+        Some(error) => Err(GpuError::Wgpu { stage, message: error.to_string() }),
+        None => Ok(()),
+    }
+}
+
+fn push_scopes(device: &wgpu::Device) -> [wgpu::ErrorScopeGuard; 2] {
+    [device.push_error_scope(wgpu::ErrorFilter::OutOfMemory), device.push_error_scope(wgpu::ErrorFilter::Validation)]
+}
+
+/// The headless renderer: device, pipelines, and buffers and targets reused across frames.
+pub struct Renderer {
+    context: GpuContext,
+    pipelines: Pipelines,
+    bind_group_layout: wgpu::BindGroupLayout,
+    bind_group: wgpu::BindGroup,
+    frame_uniform: wgpu::Buffer,
+    material_uniform: wgpu::Buffer,
+    sampler: wgpu::Sampler,
+    texture_layers: u32,
+    above_vertices: GrowingBuffer,
+    above_indices: GrowingBuffer,
+    under_vertices: GrowingBuffer,
+    membrane_vertices: GrowingBuffer,
+    membrane_indices: GrowingBuffer,
+    targets: Option<FrameTargets>,
+}
+
+fn make_bind_group(
+    device: &wgpu::Device,
+    layout: &wgpu::BindGroupLayout,
+    frame_uniform: &wgpu::Buffer,
+    material_uniform: &wgpu::Buffer,
+    textures: &wgpu::TextureView,
+    sampler: &wgpu::Sampler,
+) -> wgpu::BindGroup {
+    device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("frame"),
+        layout,
+        entries: &[
+            wgpu::BindGroupEntry { binding: 0, resource: frame_uniform.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 1, resource: material_uniform.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 2, resource: wgpu::BindingResource::TextureView(textures) },
+            wgpu::BindGroupEntry { binding: 3, resource: wgpu::BindingResource::Sampler(sampler) },
+        ],
+    })
+}
+
+fn check_indices(list: &'static str, indices: &[u32], vertex_count: usize) -> Result<(), GpuError> {
+    match indices.iter().position(|&index| index as usize >= vertex_count) {
+        Some(at) => Err(GpuError::IndexOutOfRange { list, index: at, value: indices[at], count: vertex_count }),
+        None => Ok(()),
+    }
+}
+
+fn check_materials<'a>(
+    list: &'static str,
+    materials: impl Iterator<Item = u32> + 'a,
+    material_count: usize,
+) -> Result<(), GpuError> {
+    for (index, material) in materials.enumerate() {
+        if material as usize >= material_count {
+            return Err(GpuError::IndexOutOfRange { list, index, value: material, count: material_count });
+        }
+    }
+    Ok(())
+}
+
+impl Renderer {
+    /// Opens the adapter (Vulkan if present, else GL; `WGPU_BACKEND` honoured) and builds the pipelines.
+    pub fn new() -> Result<Renderer, GpuError> {
+        let context = GpuContext::new()?;
+        let device = &context.device;
+        let scopes = push_scopes(device);
+        let uniform_entry = |binding| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Uniform,
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        let bind_group_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("frame"),
+            entries: &[
+                uniform_entry(0),
+                uniform_entry(1),
+                wgpu::BindGroupLayoutEntry {
+                    binding: 2,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: true },
+                        view_dimension: wgpu::TextureViewDimension::D2Array,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 3,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+                    count: None,
+                },
+            ],
+        });
+        let pipelines = create_pipelines(&context, &bind_group_layout)?;
+        let frame_uniform = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("frame constants"),
+            size: std::mem::size_of::<FrameUniform>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let material_uniform = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("materials"),
+            size: (MAX_MATERIALS * 16) as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let sampler = textures::repeating_sampler(device);
+        let texture_array = textures::upload_textures(device, &context.queue, &[])?;
+        let bind_group =
+            make_bind_group(device, &bind_group_layout, &frame_uniform, &material_uniform, &texture_array.view, &sampler);
+        pop_scopes(scopes, "creating the pipelines")?;
+        let vertex = wgpu::BufferUsages::VERTEX;
+        let index = wgpu::BufferUsages::INDEX;
+        Ok(Renderer {
+            context,
+            pipelines,
+            bind_group_layout,
+            bind_group,
+            frame_uniform,
+            material_uniform,
+            sampler,
+            texture_layers: texture_array.layer_count,
+            above_vertices: GrowingBuffer::new("above-water vertices", vertex),
+            above_indices: GrowingBuffer::new("above-water indices", index),
+            under_vertices: GrowingBuffer::new("under-water vertices", vertex),
+            membrane_vertices: GrowingBuffer::new("membrane vertices", vertex),
+            membrane_indices: GrowingBuffer::new("membrane indices", index),
+            targets: None,
+        })
+    }
+
+    /// Name, backend, device type and driver of the adapter in use.
+    pub fn adapter_summary(&self) -> String {
+        self.context.summary()
+    }
+
+    /// The beauty target's format name (Rgba32Float, or Rgba16Float where float32 cannot be rendered).
+    pub fn beauty_format_name(&self) -> String {
+        format!("{:?}", self.context.formats.beauty)
+    }
+
+    /// Replaces the scene's textures; `DrawMaterial::texture` indexes this list.
+    pub fn set_textures(&mut self, textures: &[Texture]) -> Result<(), GpuError> {
+        let device = &self.context.device;
+        let scopes = push_scopes(device);
+        let texture_array = textures::upload_textures(device, &self.context.queue, textures)?;
+        self.bind_group = make_bind_group(
+            device,
+            &self.bind_group_layout,
+            &self.frame_uniform,
+            &self.material_uniform,
+            &texture_array.view,
+            &self.sampler,
+        );
+        pop_scopes(scopes, "uploading textures")?;
+        self.texture_layers = texture_array.layer_count;
+        Ok(())
+    }
+
+    fn validate(&self, draw: &FrameDraw, width: u32, height: u32) -> Result<(), GpuError> {
+        let max = self.context.device.limits().max_texture_dimension_2d;
+        if width == 0 || height == 0 || width > max || height > max {
+            return Err(GpuError::BadSize { width, height, max });
+        }
+        if draw.materials.len() > MAX_MATERIALS {
+            return Err(GpuError::TooManyMaterials { count: draw.materials.len(), max: MAX_MATERIALS });
+        }
+        if let Some((material, texture)) =
+            draw.materials.iter().enumerate().find(|(_, material)| material.texture >= self.texture_layers)
+        {
+            return Err(GpuError::TextureOutOfRange { material, texture: texture.texture, count: self.texture_layers });
+        }
+        if draw.under_vertices.len() % 3 != 0 {
+            return Err(GpuError::PartialTriangle { count: draw.under_vertices.len() });
+        }
+        check_indices("above_indices", &draw.above_indices, draw.above_vertices.len())?;
+        check_indices("membrane_indices", &draw.membrane_indices, draw.membrane_vertices.len())?;
+        let material_count = draw.materials.len();
+        check_materials("above_vertices[..].material", draw.above_vertices.iter().map(|v| v.material), material_count)?;
+        check_materials("under_vertices[..].material", draw.under_vertices.iter().map(|v| v.material), material_count)?;
+        Ok(())
+    }
+
+    /// Draws one frame at `width` x `height` and reads every layer back.
+    pub fn render(
+        &mut self,
+        draw: &FrameDraw,
+        view: &FrameView,
+        width: u32,
+        height: u32,
+    ) -> Result<RenderedFrame, GpuError> {
+        self.validate(draw, width, height)?;
+        if self.targets.as_ref().is_none_or(|targets| (targets.width, targets.height) != (width, height)) {
+            self.targets = Some(FrameTargets::new(&self.context, width, height));
+        }
+        let device = &self.context.device;
+        let queue = &self.context.queue;
+        let scopes = push_scopes(device);
+
+        queue.write_buffer(&self.frame_uniform, 0, bytemuck::bytes_of(&FrameUniform::new(view, width, height)));
+        let materials: Vec<[f32; 4]> = draw
+            .materials
+            .iter()
+            .map(|material| vec4(material.tint_linear, f32::from_bits(material.texture)))
+            .collect();
+        if !materials.is_empty() {
+            queue.write_buffer(&self.material_uniform, 0, bytemuck::cast_slice(&materials));
+        }
+        self.above_vertices.upload(device, queue, bytemuck::cast_slice(&draw.above_vertices));
+        self.above_indices.upload(device, queue, bytemuck::cast_slice(&draw.above_indices));
+        self.under_vertices.upload(device, queue, bytemuck::cast_slice(&draw.under_vertices));
+        self.membrane_vertices.upload(device, queue, bytemuck::cast_slice(&draw.membrane_vertices));
+        self.membrane_indices.upload(device, queue, bytemuck::cast_slice(&draw.membrane_indices));
+
+        let targets = self.targets.as_ref().expect("created above");
+        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("frame") });
+        self.encode_passes(&mut encoder, draw, targets);
+        targets.copy_to_readback(&mut encoder);
+        queue.submit([encoder.finish()]);
+        pop_scopes(scopes, "drawing the frame")?;
+        read_back(device, targets)
+    }
+
+    fn encode_passes(&self, encoder: &mut wgpu::CommandEncoder, draw: &FrameDraw, targets: &FrameTargets) {
+        let colour = |view| {
+            Some(wgpu::RenderPassColorAttachment {
+                view,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations { load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT), store: wgpu::StoreOp::Store },
+            })
+        };
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("snell passes"),
+            color_attachments: &[
+                colour(&targets.beauty_view),
+                colour(&targets.position_view),
+                colour(&targets.flags_view),
+            ],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &targets.depth_stencil_view,
+                depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Discard }),
+                stencil_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(0), store: wgpu::StoreOp::Discard }),
+            }),
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        pass.set_bind_group(0, &self.bind_group, &[]);
+        pass.set_stencil_reference(MEMBRANE_STENCIL);
+        let pipelines = &self.pipelines;
+        fn buffer_of(growing: &GrowingBuffer) -> Option<wgpu::BufferSlice<'_>> {
+            growing.buffer.as_ref().map(|buffer| buffer.slice(..))
+        }
+
+        // a. sky, then the geometry on the eye's side.
+        pass.set_pipeline(&pipelines.sky);
+        pass.draw(0..3, 0..1);
+        if let (Some(vertices), Some(indices)) = (buffer_of(&self.above_vertices), buffer_of(&self.above_indices)) {
+            if !draw.above_indices.is_empty() {
+                pass.set_pipeline(&pipelines.above);
+                pass.set_vertex_buffer(0, vertices);
+                pass.set_index_buffer(indices, wgpu::IndexFormat::Uint32);
+                pass.draw_indexed(0..draw.above_indices.len() as u32, 0, 0..1);
+            }
+        }
+        let membrane = match (buffer_of(&self.membrane_vertices), buffer_of(&self.membrane_indices)) {
+            (Some(vertices), Some(indices)) if !draw.membrane_indices.is_empty() => Some((vertices, indices)),
+            _ => None,
+        };
+        let Some((membrane_vertices, membrane_indices)) = membrane else {
+            return;
+        };
+        let membrane_index_count = draw.membrane_indices.len() as u32;
+        let draw_membrane = |pass: &mut wgpu::RenderPass, pipeline: &wgpu::RenderPipeline| {
+            pass.set_pipeline(pipeline);
+            pass.set_vertex_buffer(0, membrane_vertices);
+            pass.set_index_buffer(membrane_indices, wgpu::IndexFormat::Uint32);
+            pass.draw_indexed(0..membrane_index_count, 0, 0..1);
+        };
+        // b. stencil where the membrane is visible.
+        draw_membrane(&mut pass, &pipelines.membrane_mark);
+        // c. inside the stencil: depth to far + deep-water colour, then the virtual geometry.
+        pass.set_pipeline(&pipelines.deep_water);
+        pass.draw(0..3, 0..1);
+        if let Some(vertices) = buffer_of(&self.under_vertices) {
+            if !draw.under_vertices.is_empty() {
+                pass.set_pipeline(&pipelines.under);
+                pass.set_vertex_buffer(0, vertices);
+                pass.draw(0..draw.under_vertices.len() as u32, 0..1);
+            }
+        }
+        // d. the front-most membrane fragment, found depth-only, blends in the sky reflection.
+        pass.set_pipeline(&pipelines.depth_reset);
+        pass.draw(0..3, 0..1);
+        draw_membrane(&mut pass, &pipelines.membrane_depth);
+        draw_membrane(&mut pass, &pipelines.membrane_fresnel);
+    }
+}
+
+fn read_back(device: &wgpu::Device, targets: &FrameTargets) -> Result<RenderedFrame, GpuError> {
+    let slice = targets.readback.slice(..);
+    let (sender, receiver) = std::sync::mpsc::channel();
+    slice.map_async(wgpu::MapMode::Read, move |result| {
+        // The receiver outlives the poll below; a failed send only means nobody is waiting.
+        let _ = sender.send(result);
+    });
+    device.poll(wgpu::PollType::wait_indefinitely())?;
+    receiver
+        .recv()
+        .map_err(|_| GpuError::Readback("the map callback never ran".to_string()))?
+        .map_err(|error| GpuError::Readback(error.to_string()))?;
+    let frame = {
+        let bytes = slice.get_mapped_range().map_err(|error| GpuError::Readback(error.to_string()))?;
+        unpack_frame(&bytes, targets)
+    };
+    targets.readback.unmap();
+    Ok(frame)
+}
+
+fn word(bytes: &[u8], at: usize) -> u32 {
+    u32::from_le_bytes([bytes[at], bytes[at + 1], bytes[at + 2], bytes[at + 3]])
+}
+
+/// Removes the row padding and converts every layer to the CPU types of [`RenderedFrame`].
+fn unpack_frame(bytes: &[u8], targets: &FrameTargets) -> RenderedFrame {
+    let (width, height) = (targets.width as usize, targets.height as usize);
+    let pixel_count = width * height;
+    let mut frame = RenderedFrame {
+        width: targets.width,
+        height: targets.height,
+        beauty_rgba: Vec::with_capacity(pixel_count),
+        distance_m: Vec::with_capacity(pixel_count),
+        position: Vec::with_capacity(pixel_count),
+        flags: Vec::with_capacity(pixel_count),
+    };
+    let beauty_pitch = padded_bytes_per_row(targets.width, targets.beauty_bytes_per_pixel) as usize;
+    let position_pitch = padded_bytes_per_row(targets.width, 16) as usize;
+    let flags_pitch = padded_bytes_per_row(targets.width, 4) as usize;
+    let [beauty_at, position_at, flags_at] = targets.readback_offsets.map(|offset| offset as usize);
+    let half_floats = targets.beauty_bytes_per_pixel == 8;
+    for y in 0..height {
+        let row = &bytes[beauty_at + y * beauty_pitch..][..width * targets.beauty_bytes_per_pixel as usize];
+        if half_floats {
+            frame.beauty_rgba.extend(row.chunks_exact(8).map(|pixel| {
+                std::array::from_fn(|c| f16_bits_to_f32(u16::from_le_bytes([pixel[2 * c], pixel[2 * c + 1]])))
+            }));
+        } else {
+            frame
+                .beauty_rgba
+                .extend(row.chunks_exact(16).map(|pixel| std::array::from_fn(|c| f32::from_bits(word(pixel, 4 * c)))));
+        }
+        let row = &bytes[position_at + y * position_pitch..][..width * 16];
+        for pixel in row.chunks_exact(16) {
+            frame.position.push(std::array::from_fn(|c| f32::from_bits(word(pixel, 4 * c))));
+            frame.distance_m.push(f32::from_bits(word(pixel, 12)));
+        }
+        let row = &bytes[flags_at + y * flags_pitch..][..width * 4];
+        frame.flags.extend(row.chunks_exact(4).map(|pixel| word(pixel, 0)));
+    }
+    frame
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn half_floats_convert_exactly() {
+        assert_eq!(f16_bits_to_f32(0x3c00), 1.0);
+        assert_eq!(f16_bits_to_f32(0xc000), -2.0);
+        assert_eq!(f16_bits_to_f32(0x7bff), 65504.0);
+        assert_eq!(f16_bits_to_f32(0x0001), 2.0f32.powi(-24));
+        assert_eq!(f16_bits_to_f32(0x3555), 0.333251953125);
+        assert_eq!(f16_bits_to_f32(0x7c00), f32::INFINITY);
+        assert_eq!(f16_bits_to_f32(0xfc00), f32::NEG_INFINITY);
+        assert!(f16_bits_to_f32(0x7e00).is_nan());
+        assert_eq!(f16_bits_to_f32(0x0000), 0.0);
+    }
+
+    #[test]
+    fn row_pitch_is_256_aligned() {
+        assert_eq!(padded_bytes_per_row(1, 4), 256);
+        assert_eq!(padded_bytes_per_row(64, 4), 256);
+        assert_eq!(padded_bytes_per_row(65, 4), 512);
+        assert_eq!(padded_bytes_per_row(1280, 16), 1280 * 16);
+    }
+
+    #[test]
+    fn frame_uniform_matches_the_wgsl_struct_size() {
+        // 2 mat4x4 + 11 vec4 in shaders/common.inc.wgsl.
+        assert_eq!(std::mem::size_of::<FrameUniform>(), 2 * 64 + 11 * 16);
+    }
+}

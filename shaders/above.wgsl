@@ -1,0 +1,38 @@
+// Pass a: geometry on the eye's side of the water, drawn at its true positions, depth-tested.
+
+struct AboveVertex {
+    @location(0) position: vec3<f32>,
+    @location(1) normal: vec3<f32>,
+    @location(2) uv: vec2<f32>,
+    @location(3) material: u32,
+};
+
+struct AboveVarying {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) world_position: vec3<f32>,
+    @location(1) normal: vec3<f32>,
+    @location(2) uv: vec2<f32>,
+    @location(3) @interpolate(flat, either) material: u32,
+};
+
+@vertex
+fn vs_above(vertex: AboveVertex) -> AboveVarying {
+    var out: AboveVarying;
+    out.clip = frame.clip_from_world * vec4<f32>(vertex.position, 1.0);
+    out.world_position = vertex.position;
+    out.normal = vertex.normal;
+    out.uv = vertex.uv;
+    out.material = vertex.material;
+    return out;
+}
+
+@fragment
+fn fs_above(in: AboveVarying) -> Targets {
+    let normal = normalize(in.normal);
+    var out: Targets;
+    out.beauty = vec4<f32>(shade_above(albedo(in.material, in.uv), normal), 1.0);
+    let distance_m = length(in.world_position - frame.eye.xyz);
+    out.position = vec4<u32>(bitcast<vec3<u32>>(in.world_position), bitcast<u32>(distance_m));
+    out.flags = 0u;
+    return out;
+}

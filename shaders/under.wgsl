@@ -1,0 +1,47 @@
+// Pass c: under-water geometry rasterised at its VIRTUAL positions, shaded with its TRUE
+// attributes, attenuated along the true water path; writes the true position and the flags.
+
+struct UnderVertex {
+    @location(0) virtual_position: vec3<f32>,
+    @location(1) true_position: vec3<f32>,
+    @location(2) normal: vec3<f32>,
+    @location(3) uv: vec2<f32>,
+    @location(4) material: u32,
+    @location(5) water_path_m: f32,
+    @location(6) flags: u32,
+};
+
+struct UnderVarying {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) true_position: vec3<f32>,
+    @location(1) normal: vec3<f32>,
+    @location(2) uv: vec2<f32>,
+    @location(3) water_path_m: f32,
+    @location(4) @interpolate(flat, either) material: u32,
+    @location(5) @interpolate(flat, either) flags: u32,
+};
+
+@vertex
+fn vs_under(vertex: UnderVertex) -> UnderVarying {
+    var out: UnderVarying;
+    out.clip = frame.clip_from_world * vec4<f32>(vertex.virtual_position, 1.0);
+    out.true_position = vertex.true_position;
+    out.normal = vertex.normal;
+    out.uv = vertex.uv;
+    out.water_path_m = vertex.water_path_m;
+    out.material = vertex.material;
+    out.flags = vertex.flags;
+    return out;
+}
+
+@fragment
+fn fs_under(in: UnderVarying) -> Targets {
+    let normal = normalize(in.normal);
+    let colour = shade_under(albedo(in.material, in.uv), normal, in.true_position, max(in.water_path_m, 0.0));
+    var out: Targets;
+    out.beauty = vec4<f32>(colour, 1.0);
+    // w is masked off: the distance is the membrane's, written by pass d.
+    out.position = vec4<u32>(bitcast<vec3<u32>>(in.true_position), 0u);
+    out.flags = in.flags;
+    return out;
+}

@@ -1,0 +1,127 @@
+//! Adapter and device: Vulkan when present, else GL (`WGPU_BACKEND` and `WGPU_ADAPTER_NAME`
+//! honoured), and the target formats the chosen adapter can actually render.
+
+use super::GpuError;
+
+/// The device and what was chosen for it.
+pub(crate) struct GpuContext {
+    pub adapter_info: wgpu::AdapterInfo,
+    pub device: wgpu::Device,
+    pub queue: wgpu::Queue,
+    pub formats: TargetFormats,
+}
+
+/// Render-target formats picked from what the adapter reports.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct TargetFormats {
+    /// Rgba32Float where it is renderable and blendable, else Rgba16Float (GL/llvmpipe).
+    pub beauty: wgpu::TextureFormat,
+    /// Depth32FloatStencil8 where supported, else Depth24PlusStencil8.
+    pub depth_stencil: wgpu::TextureFormat,
+}
+
+/// World position and distance as float bits: float32 on every backend.
+pub(crate) const POSITION_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Uint;
+pub(crate) const FLAGS_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Uint;
+
+fn instance() -> wgpu::Instance {
+    wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env())
+}
+
+/// Backend preference: Vulkan first (WebGPU-compliant, float32 targets), then GL, then the rest.
+fn backend_rank(backend: wgpu::Backend) -> u32 {
+    match backend {
+        wgpu::Backend::Vulkan => 0,
+        wgpu::Backend::Gl => 1,
+        _ => 2,
+    }
+}
+
+fn choose_adapter(instance: &wgpu::Instance) -> Result<wgpu::Adapter, GpuError> {
+    let backends = wgpu::Backends::from_env().unwrap_or(wgpu::Backends::all());
+    let adapters = pollster::block_on(instance.enumerate_adapters(backends));
+    let wanted_name = std::env::var("WGPU_ADAPTER_NAME").ok().map(|name| name.to_lowercase());
+    let found: Vec<String> = adapters
+        .iter()
+        .map(|adapter| {
+            let info = adapter.get_info();
+            format!("{} ({:?})", info.name, info.backend)
+        })
+        .collect();
+    adapters
+        .into_iter()
+        .filter(|adapter| match &wanted_name {
+            Some(name) => adapter.get_info().name.to_lowercase().contains(name),
+            None => true,
+        })
+        // Stable: among equal backends the enumeration order (hardware before software) stands.
+        .min_by_key(|adapter| backend_rank(adapter.get_info().backend))
+        .ok_or_else(|| GpuError::NoAdapter {
+            backends: format!("{backends:?}"),
+            wanted_name: wanted_name.unwrap_or_default(),
+            found: if found.is_empty() { "none".to_string() } else { found.join(", ") },
+        })
+}
+
+fn summary_of(info: &wgpu::AdapterInfo) -> String {
+    let driver = match (info.driver.is_empty(), info.driver_info.is_empty()) {
+        (true, true) => "unknown driver".to_string(),
+        (false, true) => info.driver.clone(),
+        (true, false) => info.driver_info.clone(),
+        (false, false) => format!("{} {}", info.driver, info.driver_info),
+    };
+    format!("{} ({:?}, {:?}, {})", info.name, info.backend, info.device_type, driver)
+}
+
+/// Name, backend and driver of the adapter a renderer would use, without creating a device.
+pub fn probe_adapter() -> Result<String, GpuError> {
+    let adapter = choose_adapter(&instance())?;
+    Ok(summary_of(&adapter.get_info()))
+}
+
+fn renders_and_blends(adapter: &wgpu::Adapter, format: wgpu::TextureFormat) -> bool {
+    let features = adapter.get_texture_format_features(format);
+    features.allowed_usages.contains(wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC)
+        && features.flags.contains(wgpu::TextureFormatFeatureFlags::BLENDABLE)
+}
+
+impl GpuContext {
+    pub fn new() -> Result<GpuContext, GpuError> {
+        let adapter = choose_adapter(&instance())?;
+        let adapter_info = adapter.get_info();
+        let available = adapter.features();
+        let mut required_features = wgpu::Features::empty();
+
+        // Float32 blending is a device feature: without it a float32 target cannot take pass d's blend.
+        let beauty = if available.contains(wgpu::Features::FLOAT32_BLENDABLE)
+            && renders_and_blends(&adapter, wgpu::TextureFormat::Rgba32Float)
+        {
+            required_features |= wgpu::Features::FLOAT32_BLENDABLE;
+            wgpu::TextureFormat::Rgba32Float
+        } else {
+            wgpu::TextureFormat::Rgba16Float
+        };
+        let depth_stencil = if available.contains(wgpu::Features::DEPTH32FLOAT_STENCIL8) {
+            required_features |= wgpu::Features::DEPTH32FLOAT_STENCIL8;
+            wgpu::TextureFormat::Depth32FloatStencil8
+        } else {
+            wgpu::TextureFormat::Depth24PlusStencil8
+        };
+
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("snell"),
+            required_features,
+            required_limits: wgpu::Limits::default().using_resolution(adapter.limits()),
+            experimental_features: wgpu::ExperimentalFeatures::disabled(),
+            memory_hints: wgpu::MemoryHints::Performance,
+            trace: wgpu::Trace::Off,
+        }))
+        .map_err(|source| GpuError::RequestDevice { adapter: summary_of(&adapter_info), source })?;
+
+        Ok(GpuContext { adapter_info, device, queue, formats: TargetFormats { beauty, depth_stencil } })
+    }
+
+    pub fn summary(&self) -> String {
+        summary_of(&self.adapter_info)
+    }
+}

@@ -1,0 +1,445 @@
+//! The renderer on a tiny synthetic frame (64x48): sky above the horizon, a wall standing out of
+//! the water, a membrane quad over an under-water floor quad with known flags, and membrane with
+//! nothing behind it. Every pixel whose class is unambiguous (its centre and four corners see the
+//! same surface, by CPU ray casting) is checked against the CPU shading model of
+//! `snell::gpu::shading`. Runs on whatever adapter `Renderer::new` picks: set `WGPU_BACKEND=gl` or
+//! `=vulkan` to choose; on a machine without a GPU, Mesa's llvmpipe/lavapipe serve.
+
+use glam::{Vec2, Vec3};
+use snell::camera::Camera;
+use snell::draw::{
+    flag_bits, DrawMaterial, FrameDraw, FrameView, Lighting, MembraneVertex, RenderedFrame, TrueVertex, VirtualVertex,
+    WaterOptics,
+};
+use snell::gpu::shading::{schlick_reflectance, shade_above, shade_under, sky_radiance};
+use snell::gpu::{GpuError, Renderer};
+use snell::mesh::Texture;
+
+const WIDTH: u32 = 64;
+const HEIGHT: u32 = 48;
+const FLOOR_Y_M: f32 = -1.0;
+const FLOOR_FLAGS: u32 = flag_bits::CONVERGENCE | flag_bits::POPPING;
+const WATER_PATH_M: f32 = 1.5;
+const WALL_Z_M: f32 = -1.0;
+/// Texel colour of the one-colour test texture, sRGB-encoded.
+const TEXEL_SRGB: [u8; 3] = [188, 128, 64];
+
+fn view() -> FrameView {
+    FrameView {
+        camera: Camera { eye: Vec3::new(0.3, 2.0, 6.0), target: Vec3::new(0.0, 0.0, -4.0), up: Vec3::Y, fov_y_deg: 50.0 },
+        lighting: Lighting {
+            sky_zenith_linear: Vec3::new(0.2, 0.4, 0.9),
+            sky_horizon_linear: Vec3::new(0.8, 0.85, 0.9),
+            sun_direction: Vec3::new(0.3, 0.8, 0.2).normalize(),
+            sun_color_linear: Vec3::new(2.0, 1.9, 1.8),
+            sun_size_deg: 0.53,
+            ambient_linear: Vec3::new(0.25, 0.3, 0.35),
+        },
+        water: WaterOptics {
+            n_above: 1.0,
+            n_below: 1.333,
+            absorption_per_m: Vec3::new(0.45, 0.12, 0.06),
+            scatter_color_linear: Vec3::new(0.01, 0.06, 0.09),
+            mean_level_m: 0.0,
+        },
+    }
+}
+
+fn srgb_to_linear(encoded: u8) -> f32 {
+    let c = encoded as f32 / 255.0;
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+fn texture() -> Texture {
+    let texel = [TEXEL_SRGB[0], TEXEL_SRGB[1], TEXEL_SRGB[2], 255];
+    Texture { name: "one colour".into(), width: 4, height: 4, rgba8_srgb: texel.repeat(16) }
+}
+
+fn materials() -> Vec<DrawMaterial> {
+    vec![
+        DrawMaterial { texture: 0, tint_linear: Vec3::new(0.9, 0.8, 0.7) },
+        DrawMaterial { texture: 0, tint_linear: Vec3::new(0.5, 0.9, 0.6) },
+    ]
+}
+
+fn albedo(material: usize) -> Vec3 {
+    let texel = Vec3::new(srgb_to_linear(TEXEL_SRGB[0]), srgb_to_linear(TEXEL_SRGB[1]), srgb_to_linear(TEXEL_SRGB[2]));
+    materials()[material].tint_linear * texel
+}
+
+/// Axis-aligned rectangle in a plane: membrane (y = 0), floor (y = -1) and wall (z = -1).
+#[derive(Clone, Copy)]
+struct Rect {
+    /// Which coordinate is constant (0 x, 1 y, 2 z) and its value.
+    axis: usize,
+    level: f32,
+    min: Vec2,
+    max: Vec2,
+}
+
+const MEMBRANE: Rect = Rect { axis: 1, level: 0.0, min: Vec2::new(-3.0, -6.0), max: Vec2::new(3.0, 2.0) };
+const FLOOR: Rect = Rect { axis: 1, level: FLOOR_Y_M, min: Vec2::new(-2.0, -5.0), max: Vec2::new(2.0, 1.0) };
+/// x in [1.2, 2.4], y in [-0.5, 1.0]: crosses the water line; its under-water half is hidden by the membrane.
+const WALL: Rect = Rect { axis: 2, level: WALL_Z_M, min: Vec2::new(1.2, -0.5), max: Vec2::new(2.4, 1.0) };
+
+impl Rect {
+    fn corner(&self, a: f32, b: f32) -> Vec3 {
+        match self.axis {
+            1 => Vec3::new(a, self.level, b),
+            _ => Vec3::new(a, b, self.level),
+        }
+    }
+
+    fn corners(&self) -> [Vec3; 4] {
+        [
+            self.corner(self.min.x, self.min.y),
+            self.corner(self.max.x, self.min.y),
+            self.corner(self.max.x, self.max.y),
+            self.corner(self.min.x, self.max.y),
+        ]
+    }
+
+    /// Ray parameter of the hit, if the ray meets the rectangle.
+    fn hit(&self, origin: Vec3, direction: Vec3) -> Option<f32> {
+        let t = (self.level - origin[self.axis]) / direction[self.axis];
+        if !(t > 0.0) {
+            return None;
+        }
+        let point = origin + direction * t;
+        let (a, b) = if self.axis == 1 { (point.x, point.z) } else { (point.x, point.y) };
+        (a >= self.min.x && a <= self.max.x && b >= self.min.y && b <= self.max.y).then_some(t)
+    }
+}
+
+const QUAD: [u32; 6] = [0, 1, 2, 0, 2, 3];
+
+fn frame_draw() -> FrameDraw {
+    let wall_above: Vec<TrueVertex> = WALL
+        .corners()
+        .iter()
+        .map(|&p| TrueVertex { position: p.into(), normal: [0.0, 0.0, 1.0], uv: [p.x, p.y], material: 0 })
+        .collect();
+    let membrane_vertices: Vec<MembraneVertex> =
+        MEMBRANE.corners().iter().map(|&p| MembraneVertex { position: p.into(), normal: [0.0, 1.0, 0.0] }).collect();
+    // Virtual positions equal true ones here, so the CPU can ray-cast the expected true position.
+    let floor_corners = FLOOR.corners();
+    let under_vertices: Vec<VirtualVertex> = QUAD
+        .iter()
+        .map(|&i| {
+            let p = floor_corners[i as usize];
+            VirtualVertex {
+                virtual_position: p.into(),
+                true_position: p.into(),
+                normal: [0.0, 1.0, 0.0],
+                uv: [p.x * 0.5, p.z * 0.5],
+                material: 1,
+                water_path_m: WATER_PATH_M,
+                flags: FLOOR_FLAGS,
+            }
+        })
+        .collect();
+    FrameDraw {
+        above_vertices: wall_above,
+        above_indices: QUAD.to_vec(),
+        under_vertices,
+        membrane_vertices,
+        membrane_indices: QUAD.to_vec(),
+        materials: materials(),
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Seen {
+    Sky,
+    Wall { t: f32 },
+    /// Membrane with the floor behind it.
+    Floor { membrane_t: f32, floor_t: f32 },
+    /// Membrane with nothing behind it.
+    DeepWater { membrane_t: f32 },
+}
+
+fn cast(camera: &Camera, pixel: Vec2) -> (Vec3, Seen) {
+    let direction = camera.ray_through_pixel(pixel, WIDTH, HEIGHT);
+    let eye = camera.eye;
+    let wall = WALL.hit(eye, direction);
+    let membrane = MEMBRANE.hit(eye, direction);
+    let seen = match (wall, membrane) {
+        (Some(t), m) if m.is_none_or(|m| t < m) => Seen::Wall { t },
+        (_, Some(membrane_t)) => match FLOOR.hit(eye, direction) {
+            Some(floor_t) => Seen::Floor { membrane_t, floor_t },
+            None => Seen::DeepWater { membrane_t },
+        },
+        _ => Seen::Sky,
+    };
+    (direction, seen)
+}
+
+/// What a pixel shows when its centre and its four corners all see the same kind of surface.
+fn unambiguous(camera: &Camera, x: u32, y: u32) -> Option<(Vec3, Seen)> {
+    let centre = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
+    let (direction, seen) = cast(camera, centre);
+    let same_kind = |other: Seen| std::mem::discriminant(&other) == std::mem::discriminant(&seen);
+    let corners = [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)];
+    corners
+        .iter()
+        .all(|&(dx, dy)| same_kind(cast(camera, Vec2::new(x as f32 + dx, y as f32 + dy)).1))
+        .then_some((direction, seen))
+}
+
+fn renderer() -> Renderer {
+    let mut renderer = Renderer::new().unwrap_or_else(|error| panic!("no renderer: {error}"));
+    renderer.set_textures(&[texture()]).unwrap_or_else(|error| panic!("textures: {error}"));
+    eprintln!("adapter: {} / beauty {}", renderer.adapter_summary(), renderer.beauty_format_name());
+    renderer
+}
+
+/// Relative tolerance on beauty. Half floats (GL) store 11 significant bits: 2^-11 = 4.9e-4
+/// relative rounding, plus the GPU's own sRGB decode and exp(); float32 targets keep only the
+/// arithmetic differences between GPU and CPU (different pow/exp implementations, ~1e-5).
+fn beauty_tolerance(renderer: &Renderer) -> f32 {
+    if renderer.beauty_format_name().contains("16") {
+        1.5e-3
+    } else {
+        1e-4
+    }
+}
+
+fn assert_colour_near(what: &str, x: u32, y: u32, actual: [f32; 4], expected: Vec3, relative: f32) {
+    for c in 0..3 {
+        let tolerance = relative * expected[c].abs().max(0.05);
+        assert!(
+            (actual[c] - expected[c]).abs() <= tolerance,
+            "{what} pixel ({x},{y}) channel {c}: rendered {} expected {} (tolerance {tolerance})",
+            actual[c],
+            expected[c]
+        );
+    }
+    assert_eq!(actual[3], 1.0, "{what} pixel ({x},{y}) alpha");
+}
+
+fn render(renderer: &mut Renderer) -> RenderedFrame {
+    renderer.render(&frame_draw(), &view(), WIDTH, HEIGHT).unwrap_or_else(|error| panic!("render failed: {error}"))
+}
+
+#[test]
+fn every_unambiguous_pixel_matches_the_cpu_model() {
+    let mut renderer = renderer();
+    let frame = render(&mut renderer);
+    let view = view();
+    let camera = view.camera;
+    let tolerance = beauty_tolerance(&renderer);
+    assert_eq!((frame.width, frame.height), (WIDTH, HEIGHT));
+    let pixel_count = (WIDTH * HEIGHT) as usize;
+    for layer_len in [frame.beauty_rgba.len(), frame.position.len(), frame.distance_m.len(), frame.flags.len()] {
+        assert_eq!(layer_len, pixel_count);
+    }
+
+    let mut counts = [0usize; 4];
+    for y in 0..HEIGHT {
+        for x in 0..WIDTH {
+            let at = (y * WIDTH + x) as usize;
+            let (beauty, position, distance, flags) =
+                (frame.beauty_rgba[at], frame.position[at], frame.distance_m[at], frame.flags[at]);
+            // Every pixel, ambiguous or not: only the floor's flags or none.
+            assert!(flags == 0 || flags == FLOOR_FLAGS, "pixel ({x},{y}) flags {flags}");
+            let Some((direction, seen)) = unambiguous(&camera, x, y) else { continue };
+            let through_membrane = |membrane_t: f32, behind: Vec3| {
+                let normal = Vec3::Y;
+                let f = schlick_reflectance(direction, normal, view.water.n_above, view.water.n_below);
+                let reflected = direction - 2.0 * direction.dot(normal) * normal;
+                assert!((distance - membrane_t).abs() <= 1e-4 * membrane_t, "pixel ({x},{y}) Z {distance} vs {membrane_t}");
+                (f, f * sky_radiance(reflected, &view.lighting) + (1.0 - f) * behind)
+            };
+            match seen {
+                Seen::Sky => {
+                    counts[0] += 1;
+                    let expected = sky_radiance(direction, &view.lighting);
+                    assert_colour_near("sky", x, y, beauty, expected, tolerance);
+                    assert!(position.iter().all(|c| c.is_nan()), "sky pixel ({x},{y}) position {position:?}");
+                    assert_eq!(distance, f32::INFINITY, "sky pixel ({x},{y})");
+                    assert_eq!(flags, 0);
+                }
+                Seen::Wall { t } => {
+                    counts[1] += 1;
+                    let expected = shade_above(albedo(0), Vec3::Z, &view.lighting);
+                    assert_colour_near("wall", x, y, beauty, expected, tolerance);
+                    let hit = camera.eye + direction * t;
+                    assert_eq!(position[2], WALL_Z_M, "wall pixel ({x},{y}): z is constant on the wall");
+                    assert!((Vec3::from(position) - hit).length() <= 1e-4 * t, "wall ({x},{y}) {position:?} vs {hit}");
+                    assert!((distance - t).abs() <= 1e-4 * t, "wall pixel ({x},{y}) Z {distance} vs {t}");
+                    assert_eq!(flags, 0, "wall pixel ({x},{y})");
+                }
+                Seen::Floor { membrane_t, floor_t } => {
+                    counts[2] += 1;
+                    let hit = camera.eye + direction * floor_t;
+                    let under = shade_under(albedo(1), Vec3::Y, hit, WATER_PATH_M, &view.lighting, &view.water);
+                    let (f, expected) = through_membrane(membrane_t, under);
+                    assert_colour_near("floor through water", x, y, beauty, expected, tolerance);
+                    // Seen from above at these angles the water is mostly transparent.
+                    assert!(f < 0.2, "pixel ({x},{y}) Fresnel {f}");
+                    let brightness = beauty[0] + beauty[1] + beauty[2];
+                    let refracted = under.x + under.y + under.z;
+                    assert!(brightness >= (1.0 - f) * refracted * 0.999, "pixel ({x},{y}) darker than its refracted part");
+                    assert_eq!(position[1], FLOOR_Y_M, "floor pixel ({x},{y}): y is constant on the floor");
+                    assert!((Vec3::from(position) - hit).length() <= 1e-4 * floor_t, "floor ({x},{y}) {position:?} vs {hit}");
+                    assert_eq!(flags, FLOOR_FLAGS, "floor pixel ({x},{y})");
+                }
+                Seen::DeepWater { membrane_t } => {
+                    counts[3] += 1;
+                    let (_, expected) = through_membrane(membrane_t, view.water.scatter_color_linear);
+                    assert_colour_near("deep water", x, y, beauty, expected, tolerance);
+                    assert!(position.iter().all(|c| c.is_nan()), "deep water ({x},{y}) position {position:?}");
+                    assert_eq!(flags, 0, "deep water pixel ({x},{y})");
+                }
+            }
+        }
+    }
+    // The frame must actually contain each kind of pixel, or the checks above prove little.
+    for (kind, count) in ["sky", "wall", "floor", "deep water"].iter().zip(counts) {
+        assert!(count >= 20, "only {count} unambiguous {kind} pixels");
+    }
+    eprintln!("checked pixels: sky {} wall {} floor {} deep water {}", counts[0], counts[1], counts[2], counts[3]);
+}
+
+#[test]
+fn flags_are_set_exactly_where_the_floor_is_seen_through_the_membrane() {
+    let mut renderer = renderer();
+    let frame = render(&mut renderer);
+    let camera = view().camera;
+    let mut flagged_without_floor = Vec::new();
+    for y in 0..HEIGHT {
+        for x in 0..WIDTH {
+            let flagged = frame.flags[(y * WIDTH + x) as usize] != 0;
+            let (_, seen) = cast(&camera, Vec2::new(x as f32 + 0.5, y as f32 + 0.5));
+            let floor = matches!(seen, Seen::Floor { .. });
+            // Pixel centres exactly on an edge can go either way; everything else must agree.
+            if flagged != floor && unambiguous(&camera, x, y).is_some() {
+                flagged_without_floor.push((x, y, flagged));
+            }
+        }
+    }
+    assert!(flagged_without_floor.is_empty(), "flags disagree with ray casting at {flagged_without_floor:?}");
+}
+
+fn bits(frame: &RenderedFrame) -> Vec<u32> {
+    let mut out = Vec::new();
+    out.extend(frame.beauty_rgba.iter().flatten().map(|v| v.to_bits()));
+    out.extend(frame.position.iter().flatten().map(|v| v.to_bits()));
+    out.extend(frame.distance_m.iter().map(|v| v.to_bits()));
+    out.extend(frame.flags.iter().copied());
+    out
+}
+
+#[test]
+fn rendering_is_deterministic_and_survives_size_changes() {
+    let mut renderer = renderer();
+    let first = render(&mut renderer);
+    let second = render(&mut renderer);
+    assert!(bits(&first) == bits(&second), "two renders of the same frame differ");
+    let small = renderer.render(&frame_draw(), &view(), 32, 24).unwrap_or_else(|error| panic!("{error}"));
+    assert_eq!(small.beauty_rgba.len(), 32 * 24);
+    // More geometry than before forces the vertex buffers to grow; the frame must not change.
+    let mut bigger = frame_draw();
+    let mut far_away = bigger.under_vertices.clone();
+    for vertex in &mut far_away {
+        vertex.virtual_position[2] -= 2000.0; // beyond the far plane: clipped, never visible
+    }
+    for _ in 0..200 {
+        bigger.under_vertices.extend_from_slice(&far_away);
+    }
+    let third = renderer.render(&bigger, &view(), WIDTH, HEIGHT).unwrap_or_else(|error| panic!("{error}"));
+    assert!(bits(&first) == bits(&third), "frame changed after a resize and a buffer growth");
+}
+
+#[test]
+fn bad_draw_data_is_an_error_not_a_crash() {
+    let mut renderer = renderer();
+    let mut draw = frame_draw();
+    draw.under_vertices[1].material = 7;
+    let error = renderer.render(&draw, &view(), WIDTH, HEIGHT).expect_err("material 7 does not exist");
+    assert!(matches!(error, GpuError::IndexOutOfRange { value: 7, .. }), "{error}");
+    let mut draw = frame_draw();
+    draw.membrane_indices[2] = 99;
+    assert!(matches!(renderer.render(&draw, &view(), WIDTH, HEIGHT), Err(GpuError::IndexOutOfRange { value: 99, .. })));
+    let mut draw = frame_draw();
+    draw.materials[0].texture = 3;
+    assert!(matches!(renderer.render(&draw, &view(), WIDTH, HEIGHT), Err(GpuError::TextureOutOfRange { .. })));
+    assert!(matches!(renderer.render(&frame_draw(), &view(), 0, HEIGHT), Err(GpuError::BadSize { .. })));
+    let broken = Texture { name: "short".into(), width: 4, height: 4, rgba8_srgb: vec![0; 10] };
+    assert!(matches!(renderer.set_textures(&[broken]), Err(GpuError::BadTexture { .. })));
+    // The renderer still works after refusing bad input.
+    render(&mut renderer);
+}
+
+/// A floor grid of `cells` x `cells` quads as unindexed virtual triangles, and a membrane grid.
+fn heavy_draw(cells: usize, membrane_cells: usize) -> FrameDraw {
+    let mut draw = frame_draw();
+    draw.under_vertices.clear();
+    let at = |i: usize, j: usize, n: usize, rect: &Rect| {
+        let a = rect.min.x + (rect.max.x - rect.min.x) * i as f32 / n as f32;
+        let b = rect.min.y + (rect.max.y - rect.min.y) * j as f32 / n as f32;
+        rect.corner(a, b)
+    };
+    for j in 0..cells {
+        for i in 0..cells {
+            let corners = [at(i, j, cells, &FLOOR), at(i + 1, j, cells, &FLOOR), at(i + 1, j + 1, cells, &FLOOR), at(i, j + 1, cells, &FLOOR)];
+            for &k in &QUAD {
+                let p = corners[k as usize];
+                draw.under_vertices.push(VirtualVertex {
+                    virtual_position: p.into(),
+                    true_position: p.into(),
+                    normal: [0.0, 1.0, 0.0],
+                    uv: [p.x, p.z],
+                    material: 1,
+                    water_path_m: WATER_PATH_M,
+                    flags: ((i + j) % 16) as u32,
+                });
+            }
+        }
+    }
+    let n = membrane_cells;
+    draw.membrane_vertices = (0..=n)
+        .flat_map(|j| (0..=n).map(move |i| (i, j)))
+        .map(|(i, j)| MembraneVertex { position: at(i, j, n, &MEMBRANE).into(), normal: [0.0, 1.0, 0.0] })
+        .collect();
+    draw.membrane_indices = (0..n)
+        .flat_map(|j| (0..n).map(move |i| (i, j)))
+        .flat_map(|(i, j)| {
+            let v = |i: usize, j: usize| (j * (n + 1) + i) as u32;
+            [v(i, j), v(i + 1, j), v(i + 1, j + 1), v(i, j), v(i + 1, j + 1), v(i, j + 1)]
+        })
+        .collect();
+    draw
+}
+
+/// Not a pass/fail test: prints the time of a 1280x720 frame of ~200k vertices, readback included.
+/// Run with `cargo test --release --test gpu_render -- --ignored --nocapture`.
+#[test]
+#[ignore]
+fn timing_1280x720_with_200k_vertices() {
+    let mut renderer = renderer();
+    let draw = heavy_draw(180, 128);
+    let vertex_count = draw.under_vertices.len() + draw.membrane_vertices.len() + draw.above_vertices.len();
+    let mut times_ms = Vec::new();
+    for _ in 0..12 {
+        let start = std::time::Instant::now();
+        let frame = renderer.render(&draw, &view(), 1280, 720).unwrap_or_else(|error| panic!("{error}"));
+        times_ms.push(start.elapsed().as_secs_f64() * 1e3);
+        assert_eq!(frame.flags.len(), 1280 * 720);
+    }
+    let warm = &mut times_ms[2..];
+    warm.sort_by(f64::total_cmp);
+    eprintln!(
+        "{} vertices at 1280x720 on {}: first {:.1} ms, warm median {:.1} ms, min {:.1} ms, max {:.1} ms",
+        vertex_count,
+        renderer.adapter_summary(),
+        times_ms[0],
+        warm[warm.len() / 2],
+        warm[0],
+        warm[warm.len() - 1]
+    );
+}
