@@ -590,7 +590,7 @@ mod tests {
     #[test]
     fn flat_water_matches_the_bisection_solution_on_screen() {
         let objects = [flat_sample_object(200)];
-        let geometry = flat_water_geometry(64, ImageSearch::BruteForce, &objects);
+        let geometry = flat_water_geometry(64, ImageSearch::Accelerated, &objects);
         assert_eq!(
             geometry.under_vertices.len(),
             600,
@@ -647,7 +647,7 @@ mod tests {
             .map(|cells| {
                 rms(&flat_screen_errors_px(&flat_water_geometry(
                     cells,
-                    ImageSearch::BruteForce,
+                    ImageSearch::Accelerated,
                     &objects,
                 )))
             })
@@ -706,7 +706,7 @@ mod tests {
             image_size: (640, 480),
             objects: &objects,
             mean_level_m: 0.0,
-            search: ImageSearch::BruteForce,
+            search: ImageSearch::Accelerated,
         };
         for (i, p) in positions.iter().enumerate().take(6) {
             let sight = flat_sight_point(eye.as_dvec3(), p.as_dvec3(), 0.0, 1.0, 1.333);
@@ -811,7 +811,7 @@ mod tests {
             image_size: (640, 480),
             objects: &objects,
             mean_level_m: 0.0,
-            search: ImageSearch::BruteForce,
+            search: ImageSearch::Accelerated,
         };
         let geometry = build_virtual_geometry(&request, None);
         assert!(
@@ -903,7 +903,7 @@ mod tests {
             image_size: (640, 480),
             objects: &objects,
             mean_level_m: 0.0,
-            search: ImageSearch::BruteForce,
+            search: ImageSearch::Accelerated,
         };
         let before = build_virtual_geometry(&request(&before_field), None);
         assert_eq!(
@@ -979,7 +979,7 @@ mod tests {
                     image_size: (640, 480),
                     objects: &objects,
                     mean_level_m: 0.0,
-                    search: ImageSearch::BruteForce,
+                    search: ImageSearch::Accelerated,
                 },
                 previous,
             )
@@ -1005,5 +1005,102 @@ mod tests {
             previous = current;
         }
         panic!("the sight point never left its facet: the test moved the eye too little");
+    }
+
+    /// A tessellated wall standing in the wavy water (x from -1.4 to 1.4, y from -2 to 0.8, at z):
+    /// many vertices under a moving crest, triangles crossing the surface.
+    fn wall_object(z: f32, n: u32) -> Object {
+        let mut positions = Vec::new();
+        for j in 0..=n {
+            for i in 0..=n {
+                let (u, v) = (i as f32 / n as f32, j as f32 / n as f32);
+                positions.push(Vec3::new(-1.4 + 2.8 * u, -2.0 + 2.8 * v, z + 0.3 * u * v));
+            }
+        }
+        let mut triangles = Vec::new();
+        for j in 0..n {
+            for i in 0..n {
+                let a = j * (n + 1) + i;
+                triangles.push([a, a + 1, a + n + 2]);
+                triangles.push([a, a + n + 2, a + n + 1]);
+            }
+        }
+        object(positions, triangles)
+    }
+
+    /// The whole frame (geometry, counts, tracking, popping against a previous frame) is the same
+    /// with the accelerated search as with the brute-force oracle, and the same bytes when rendered
+    /// twice. Where the wall meets the water, the under-water part's surface vertices are exactly
+    /// the above part's: no seam.
+    #[test]
+    fn accelerated_frame_equals_brute_force_frame_and_is_deterministic() {
+        let eye = Vec3::new(0.3, 2.5, -1.5);
+        let extent = grid((-1.5, -1.0), (1.5, 1.0), (48, 16));
+        let objects = [wall_object(0.4, 24), wall_object(-0.2, 17)];
+        let camera = Camera {
+            eye,
+            target: Vec3::new(0.0, -1.0, 0.3),
+            up: Vec3::Y,
+            fov_y_deg: 60.0,
+        };
+        let frame = |centre_x_m: f64, search: ImageSearch, previous: Option<&TrackingState>| {
+            let surface = Crest { centre_x_m };
+            let membrane = membrane_of(&surface, extent);
+            let field = RefractionField::build(
+                &membrane,
+                &surface,
+                setup(eye),
+                query_height_range(&objects, &membrane),
+            );
+            let request = VirtualGeometryRequest {
+                field: &field,
+                camera,
+                image_size: (640, 480),
+                objects: &objects,
+                mean_level_m: 0.0,
+                search,
+            };
+            build_virtual_geometry(&request, previous)
+        };
+        let before = frame(-0.1, ImageSearch::Accelerated, None);
+        let fast = frame(0.1, ImageSearch::Accelerated, Some(&before.tracking));
+        let oracle = frame(0.1, ImageSearch::BruteForce, Some(&before.tracking));
+        let again = frame(0.1, ImageSearch::Accelerated, Some(&before.tracking));
+        let counts = fast.counts;
+        assert!(counts.vertices.under_water > 500, "{counts:?}");
+        assert!(
+            counts.vertices.convergence > 0,
+            "the crest must focus: {counts:?}"
+        );
+        assert!(
+            counts.vertices.popping > 0,
+            "the moving crest must make something pop: {counts:?}"
+        );
+        assert_eq!(fast.counts, oracle.counts);
+        assert_eq!(fast.tracking, oracle.tracking);
+        assert_eq!(fast.under_vertices, oracle.under_vertices);
+        assert_eq!(fast.above_vertices, oracle.above_vertices);
+        assert_eq!(fast.above_indices, oracle.above_indices);
+        assert_eq!(
+            bytemuck::cast_slice::<VirtualVertex, u8>(&fast.under_vertices),
+            bytemuck::cast_slice::<VirtualVertex, u8>(&again.under_vertices)
+        );
+        assert_eq!(fast.counts, again.counts);
+
+        let surface_vertices: Vec<&VirtualVertex> = fast
+            .under_vertices
+            .iter()
+            .filter(|v| v.water_path_m == 0.0)
+            .collect();
+        assert!(surface_vertices.len() > 20);
+        for v in surface_vertices {
+            assert_eq!(v.virtual_position, v.true_position);
+            assert!(
+                fast.above_vertices
+                    .iter()
+                    .any(|a| a.position == v.true_position && a.material == v.material),
+                "{v:?} has no twin above the water"
+            );
+        }
     }
 }
