@@ -3,6 +3,7 @@
 //! virtual vertices, triangles split at the water line, and the per-frame failure flags.
 //! Pure CPU (rayon): no wgpu, no I/O.
 
+pub mod bench;
 pub mod cells;
 pub mod flags;
 pub mod flat;

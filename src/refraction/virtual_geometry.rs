@@ -1,1 +1,1106 @@
-//! (stub: being written)
+//! Virtual geometry (ALGORITHM §5.4-5, §7, §9): receives one frame's refraction field, camera, image
+//! size and world-space objects (plus frame t-1's tracking state, for popping); returns what the GPU
+//! draws — geometry above the water at true positions (indexed), geometry under it at virtual
+//! positions with true attributes and per-triangle flags (unindexed) — with the frame's flag counts
+//! and its own tracking state for frame t+1.
+//!
+//! Every distinct under-water vertex is queried once (in parallel, results in input order), every
+//! image is enumerated, and the drawn one is chosen by [`crate::refraction::flags::CONVERGENCE_POLICY`],
+//! never by looking at earlier frames: the output, tracking state included, is a pure function of
+//! the frame's inputs. That is what lets a frame rendered alone recompute frame t-1's tracking state
+//! with [`tracking_state`] and get what a sequential render would have carried over.
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use crate::camera::Camera;
+use crate::draw::{flag_bits, TrueVertex, VirtualVertex};
+use crate::mesh::Object;
+use crate::refraction::flags::{vertex_pops, FlagCounts, TrackedVertex, TrackingState};
+use crate::refraction::flat::{flat_virtual_vertex, virtual_vertex};
+use crate::refraction::search::{Image, RefractionField};
+use crate::refraction::split::{split_mesh, Side, SplitMesh, WaterVolume};
+use crate::water::Membrane;
+
+/// Which sight-facet search answers the queries: the accelerated one for rendering, the brute-force
+/// oracle for tests of the search itself.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ImageSearch {
+    #[default]
+    Accelerated,
+    BruteForce,
+}
+
+/// One frame's inputs to the virtual geometry.
+#[derive(Clone, Copy)]
+pub struct VirtualGeometryRequest<'a> {
+    /// Built for query heights covering [`query_height_range`] of the objects.
+    pub field: &'a RefractionField<'a>,
+    /// Used only for screen positions (popping); the optics use `field.setup.eye`.
+    pub camera: Camera,
+    /// Width and height in pixels.
+    pub image_size: (u32, u32),
+    /// World space; the material index of a drawn vertex is its object's index here.
+    pub objects: &'a [Object],
+    /// The flat plane used for the position of imageless vertices of boundary triangles.
+    pub mean_level_m: f32,
+    pub search: ImageSearch,
+}
+
+/// The image drawn for an under-water vertex.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ChosenImage {
+    pub facet: u32,
+    pub sight_point: Vec3,
+    pub virtual_position: Vec3,
+    /// `|V - S|`.
+    pub water_path_m: f32,
+    pub extrapolated: bool,
+}
+
+/// What the search says about one under-water vertex.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct VertexImages {
+    /// Distinct images found (0: outside the visible volume; > 1: zone of convergence).
+    pub image_count: u32,
+    /// `None` when there is no image.
+    pub chosen: Option<ChosenImage>,
+}
+
+/// One frame's geometry for the GPU, with its flags.
+#[derive(Clone, Debug)]
+pub struct VirtualGeometry {
+    pub above_vertices: Vec<TrueVertex>,
+    pub above_indices: Vec<u32>,
+    /// Three per triangle.
+    pub under_vertices: Vec<VirtualVertex>,
+    pub counts: FlagCounts,
+    /// This frame's chosen images, for popping at the next frame.
+    pub tracking: TrackingState,
+}
+
+/// The height range the refraction field must answer queries for (`RefractionField::build`'s
+/// `query_y_range`): from the lowest object vertex over the membrane to the highest membrane vertex.
+/// Split vertices lie on object edges, so they are inside this range too.
+pub fn query_height_range(objects: &[Object], membrane: &Membrane) -> (f32, f32) {
+    let grid = &membrane.grid;
+    let (membrane_low, membrane_high) = membrane
+        .positions
+        .iter()
+        .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), p| {
+            (lo.min(p.y), hi.max(p.y))
+        });
+    let object_low = objects
+        .iter()
+        .flat_map(|o| o.mesh.positions.iter())
+        .filter(|p| {
+            let (x, z) = (p.x as f64, p.z as f64);
+            x >= grid.min_x && x <= grid.max_x && z >= grid.min_z && z <= grid.max_z
+        })
+        .fold(f32::INFINITY, |lo, p| lo.min(p.y));
+    (object_low.min(membrane_low), membrane_high)
+}
+
+/// Every image of `point` and the one drawn: least optical path `n_above |S - E| + n_below |V - S|`,
+/// then lowest facet index. `scratch` is reused between calls.
+pub fn vertex_images(
+    field: &RefractionField,
+    point: Vec3,
+    search: ImageSearch,
+    scratch: &mut Vec<Image>,
+) -> VertexImages {
+    match search {
+        ImageSearch::Accelerated => field.images(point, scratch),
+        ImageSearch::BruteForce => field.images_brute_force(point, scratch),
+    }
+    let eye = field.setup.eye.as_dvec3();
+    let (n_above, n_below) = (field.setup.n_above as f64, field.setup.n_below as f64);
+    let point_f64 = point.as_dvec3();
+    let optical_path = |image: &Image| {
+        let s = image.sight_point.as_dvec3();
+        n_above * (s - eye).length() + n_below * (point_f64 - s).length()
+    };
+    let best = scratch.iter().min_by(|a, b| {
+        optical_path(a)
+            .total_cmp(&optical_path(b))
+            .then(a.facet.cmp(&b.facet))
+    });
+    VertexImages {
+        image_count: scratch.len() as u32,
+        chosen: best.map(|image| {
+            let s = image.sight_point.as_dvec3();
+            ChosenImage {
+                facet: image.facet,
+                sight_point: image.sight_point,
+                virtual_position: virtual_vertex(eye, s, point_f64, n_above, n_below).as_vec3(),
+                water_path_m: (point_f64 - s).length() as f32,
+                extrapolated: image.extrapolated,
+            }
+        }),
+    }
+}
+
+/// An under-water vertex after the query: where it is drawn and how it is flagged.
+#[derive(Clone, Copy, Debug)]
+struct ResolvedVertex {
+    images: VertexImages,
+    /// The chosen image's virtual position, or the flat-water one when there is no image.
+    drawn_position: Vec3,
+    water_path_m: f32,
+    pops: bool,
+}
+
+/// Builds the frame's geometry, flags and tracking state. `previous` is frame t-1's tracking state
+/// (from the previous call in a sequence, or from [`tracking_state`] at t-1 for a frame rendered
+/// alone — the same value); without it nothing is judged popping.
+pub fn build_virtual_geometry(
+    request: &VirtualGeometryRequest,
+    previous: Option<&TrackingState>,
+) -> VirtualGeometry {
+    let field = request.field;
+    let membrane = field.membrane;
+    let water = WaterVolume {
+        surface: field.surface,
+        extent: membrane.grid,
+    };
+    let splits: Vec<SplitMesh> = request
+        .objects
+        .par_iter()
+        .map(|object| split_mesh(&object.mesh, &water))
+        .collect();
+
+    // Each distinct under-water vertex once, in a fixed order: (object, vertex).
+    let queries: Vec<(u32, u32)> = splits
+        .iter()
+        .enumerate()
+        .flat_map(|(object, split)| {
+            split
+                .vertices
+                .iter()
+                .enumerate()
+                .filter(|(_, v)| v.side == Side::Below)
+                .map(move |(vertex, _)| (object as u32, vertex as u32))
+        })
+        .collect();
+    let eye = field.setup.eye.as_dvec3();
+    let (n_above, n_below) = (field.setup.n_above as f64, field.setup.n_below as f64);
+    let (width, height) = request.image_size;
+    let previous = previous.filter(|p| p.is_comparable(&membrane.grid, request.image_size));
+    let answers: Vec<(ResolvedVertex, TrackedVertex)> = queries
+        .par_iter()
+        .map_init(Vec::new, |scratch, &(object, vertex)| {
+            let split = &splits[object as usize];
+            let point = split.vertices[vertex as usize].position;
+            let images = vertex_images(field, point, request.search, scratch);
+            let (drawn_position, water_path_m) = match images.chosen {
+                Some(chosen) => (chosen.virtual_position, chosen.water_path_m),
+                None => {
+                    let (position, path_m) = flat_virtual_vertex(
+                        eye,
+                        point.as_dvec3(),
+                        request.mean_level_m as f64,
+                        n_above,
+                        n_below,
+                    );
+                    (position.as_vec3(), path_m as f32)
+                }
+            };
+            let pixel = request.camera.pixel_of(drawn_position, width, height);
+            let tracked = match images.chosen {
+                Some(chosen) => TrackedVertex::Seen {
+                    facet: chosen.facet,
+                    pixel,
+                },
+                None => TrackedVertex::Unseen { pixel },
+            };
+            // Only the mesh's own vertices are tracked: crossings are created per frame.
+            let pops = (vertex as usize) < split.original_vertex_count
+                && previous
+                    .and_then(|p| p.vertex(object as usize, vertex as usize))
+                    .is_some_and(|before| vertex_pops(before, tracked, &membrane.triangles));
+            (
+                ResolvedVertex {
+                    images,
+                    drawn_position,
+                    water_path_m,
+                    pops,
+                },
+                tracked,
+            )
+        })
+        .collect();
+
+    let mut counts = FlagCounts::default();
+    let mut resolved: Vec<Vec<Option<ResolvedVertex>>> = splits
+        .iter()
+        .map(|s| vec![None; s.vertices.len()])
+        .collect();
+    let mut tracking: Vec<Vec<TrackedVertex>> = splits
+        .iter()
+        .map(|s| vec![TrackedVertex::NotUnderWater; s.original_vertex_count])
+        .collect();
+    for (&(object, vertex), &(answer, tracked)) in queries.iter().zip(&answers) {
+        let (object, vertex) = (object as usize, vertex as usize);
+        resolved[object][vertex] = Some(answer);
+        if vertex < splits[object].original_vertex_count {
+            tracking[object][vertex] = tracked;
+        }
+        let vertex_counts = &mut counts.vertices;
+        vertex_counts.under_water += 1;
+        vertex_counts.outside += u64::from(answer.images.image_count == 0);
+        vertex_counts.convergence += u64::from(answer.images.image_count > 1);
+        vertex_counts.extrapolated +=
+            u64::from(answer.images.chosen.is_some_and(|c| c.extrapolated));
+        vertex_counts.popping += u64::from(answer.pops);
+    }
+
+    let mut above_vertices = Vec::new();
+    let mut above_indices = Vec::new();
+    let mut under_vertices = Vec::new();
+    for (object, split) in splits.iter().enumerate() {
+        append_above(
+            object as u32,
+            split,
+            &mut above_vertices,
+            &mut above_indices,
+        );
+        append_under(
+            object as u32,
+            split,
+            &resolved[object],
+            &mut under_vertices,
+            &mut counts,
+        );
+    }
+    VirtualGeometry {
+        above_vertices,
+        above_indices,
+        under_vertices,
+        counts,
+        tracking: TrackingState {
+            grid: membrane.grid,
+            image_size: request.image_size,
+            vertices: tracking,
+        },
+    }
+}
+
+/// Frame t's tracking state alone: exactly the `tracking` [`build_virtual_geometry`] returns for
+/// the same request (it IS that computation), for popping at frame t+1 when t was not rendered.
+pub fn tracking_state(request: &VirtualGeometryRequest) -> TrackingState {
+    build_virtual_geometry(request, None).tracking
+}
+
+fn append_above(
+    object: u32,
+    split: &SplitMesh,
+    vertices: &mut Vec<TrueVertex>,
+    indices: &mut Vec<u32>,
+) {
+    // Only the vertices the above part uses are uploaded.
+    let mut remap = vec![u32::MAX; split.vertices.len()];
+    for triangle in &split.above_triangles {
+        for &i in triangle {
+            if remap[i as usize] == u32::MAX {
+                let v = split.vertices[i as usize];
+                remap[i as usize] = vertices.len() as u32;
+                vertices.push(TrueVertex {
+                    position: v.position.to_array(),
+                    normal: v.normal.to_array(),
+                    uv: v.uv.to_array(),
+                    material: object,
+                });
+            }
+            indices.push(remap[i as usize]);
+        }
+    }
+}
+
+fn append_under(
+    object: u32,
+    split: &SplitMesh,
+    resolved: &[Option<ResolvedVertex>],
+    out: &mut Vec<VirtualVertex>,
+    counts: &mut FlagCounts,
+) {
+    for triangle in &split.below_triangles {
+        counts.triangles.under_water += 1;
+        let mut under_water = 0;
+        let mut with_image = 0;
+        let mut flags = 0;
+        for &i in triangle {
+            if let Some(r) = resolved[i as usize] {
+                under_water += 1;
+                with_image += u32::from(r.images.chosen.is_some());
+                if r.images.image_count > 1 {
+                    flags |= flag_bits::CONVERGENCE;
+                }
+                if r.images.chosen.is_some_and(|c| c.extrapolated) {
+                    flags |= flag_bits::EXTRAPOLATED;
+                }
+                if r.pops {
+                    flags |= flag_bits::POPPING;
+                }
+            }
+        }
+        if with_image == 0 {
+            // Every under-water vertex is outside the visible volume: nothing to draw it with.
+            counts.triangles.not_drawn += 1;
+            continue;
+        }
+        if with_image < under_water {
+            flags |= flag_bits::BOUNDARY;
+        }
+        let triangle_counts = &mut counts.triangles;
+        triangle_counts.boundary += u64::from(flags & flag_bits::BOUNDARY != 0);
+        triangle_counts.convergence += u64::from(flags & flag_bits::CONVERGENCE != 0);
+        triangle_counts.extrapolated += u64::from(flags & flag_bits::EXTRAPOLATED != 0);
+        triangle_counts.popping += u64::from(flags & flag_bits::POPPING != 0);
+        for &i in triangle {
+            let v = split.vertices[i as usize];
+            // A surface vertex is its own virtual vertex: V' = V, no water on its path.
+            let (virtual_position, water_path_m) = match resolved[i as usize] {
+                Some(r) => (r.drawn_position, r.water_path_m),
+                None => (v.position, 0.0),
+            };
+            out.push(VirtualVertex {
+                virtual_position: virtual_position.to_array(),
+                true_position: v.position.to_array(),
+                normal: v.normal.to_array(),
+                uv: v.uv.to_array(),
+                material: object,
+                water_path_m,
+                flags,
+            });
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::DVec3;
+
+    use super::*;
+    use crate::mesh::{Material, Mesh};
+    use crate::refraction::flags::facets_adjacent;
+    use crate::refraction::flat::flat_sight_point;
+    use crate::refraction::search::{CellMode, RefractionSetup};
+    use crate::water::{HeightField, MembraneGrid};
+
+    const N_AIR: f32 = 1.0;
+    const N_WATER: f32 = 1.333;
+
+    struct Flat(f64);
+    impl HeightField for Flat {
+        fn height(&self, _: f64, _: f64) -> f64 {
+            self.0
+        }
+        fn gradient(&self, _: f64, _: f64) -> (f64, f64) {
+            (0.0, 0.0)
+        }
+    }
+
+    /// A steep Gaussian ridge along z, centred on x = `centre_x_m`: a lens that focuses rays, so
+    /// points deep under it have three images.
+    struct Crest {
+        centre_x_m: f64,
+    }
+    const CREST_HEIGHT_M: f64 = 0.3;
+    const CREST_WIDTH_M: f64 = 0.3;
+    impl HeightField for Crest {
+        fn height(&self, x: f64, _: f64) -> f64 {
+            let u = (x - self.centre_x_m) / CREST_WIDTH_M;
+            CREST_HEIGHT_M * (-u * u).exp()
+        }
+        fn gradient(&self, x: f64, z: f64) -> (f64, f64) {
+            let u = (x - self.centre_x_m) / CREST_WIDTH_M;
+            (-2.0 * u / CREST_WIDTH_M * self.height(x, z), 0.0)
+        }
+    }
+
+    /// The membrane layout of `crate::water`: row-major in z then x, two counter-clockwise (seen from
+    /// above) triangles per cell, analytic normals.
+    fn membrane_of(surface: &dyn HeightField, grid: MembraneGrid) -> Membrane {
+        let (nx, nz) = (grid.cells_x, grid.cells_z);
+        let mut positions = Vec::new();
+        let mut normals = Vec::new();
+        for iz in 0..=nz {
+            for ix in 0..=nx {
+                let x = grid.min_x + (grid.max_x - grid.min_x) * ix as f64 / nx as f64;
+                let z = grid.min_z + (grid.max_z - grid.min_z) * iz as f64 / nz as f64;
+                positions.push(DVec3::new(x, surface.height(x, z), z).as_vec3());
+                normals.push(surface.normal(x, z).as_vec3());
+            }
+        }
+        let row = nx + 1;
+        let mut triangles = Vec::new();
+        for iz in 0..nz {
+            for ix in 0..nx {
+                let a = iz * row + ix;
+                triangles.push([a, a + row, a + 1]);
+                triangles.push([a + 1, a + row, a + row + 1]);
+            }
+        }
+        Membrane {
+            grid,
+            positions,
+            normals,
+            triangles,
+        }
+    }
+
+    fn grid(min: (f64, f64), max: (f64, f64), cells: (u32, u32)) -> MembraneGrid {
+        MembraneGrid {
+            min_x: min.0,
+            min_z: min.1,
+            max_x: max.0,
+            max_z: max.1,
+            cells_x: cells.0,
+            cells_z: cells.1,
+        }
+    }
+
+    fn setup(eye: Vec3) -> RefractionSetup {
+        RefractionSetup {
+            eye,
+            n_above: N_AIR,
+            n_below: N_WATER,
+            cell_mode: CellMode::EqualT,
+        }
+    }
+
+    fn object(positions: Vec<Vec3>, triangles: Vec<[u32; 3]>) -> Object {
+        let n = positions.len();
+        Object {
+            name: "test".into(),
+            mesh: Mesh {
+                positions,
+                normals: vec![Vec3::Y; n],
+                uvs: vec![glam::Vec2::ZERO; n],
+                triangles,
+            },
+            material: Material {
+                texture: 0,
+                tint_linear: Vec3::ONE,
+            },
+        }
+    }
+
+    /// Seeded, dependency-free uniform numbers in [0, 1) (64-bit LCG, top bits).
+    struct Lcg(u64);
+    impl Lcg {
+        fn next(&mut self) -> f64 {
+            self.0 = self
+                .0
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (self.0 >> 11) as f64 / (1u64 << 53) as f64
+        }
+    }
+
+    /// Eye 1 m above flat water, looking down into it: the refraction rays turn strongly across the
+    /// membrane, so the error of interpolating them linearly across a facet is large enough to
+    /// measure far above f32 noise.
+    const FLAT_EYE: Vec3 = Vec3::new(0.2, 1.0, -1.7);
+    const IMAGE_SIZE: (u32, u32) = (1920, 1080);
+    const FOV_Y_DEG: f32 = 60.0;
+
+    fn flat_camera() -> Camera {
+        Camera {
+            eye: FLAT_EYE,
+            target: Vec3::new(0.0, -1.0, 0.3),
+            up: Vec3::Y,
+            fov_y_deg: FOV_Y_DEG,
+        }
+    }
+
+    /// Seeded points under the flat water, each the corner of its own tiny triangle.
+    fn flat_sample_object(count: usize) -> Object {
+        let mut random = Lcg(0x5eed_f1a7);
+        let mut positions = Vec::new();
+        for _ in 0..count {
+            let p = Vec3::new(
+                (-1.5 + 3.0 * random.next()) as f32,
+                (-2.0 + 1.8 * random.next()) as f32,
+                (-1.5 + 3.3 * random.next()) as f32,
+            );
+            positions.extend([
+                p,
+                p + Vec3::new(0.01, 0.0, 0.0),
+                p + Vec3::new(0.0, 0.0, 0.01),
+            ]);
+        }
+        let triangles = (0..count as u32)
+            .map(|k| [3 * k, 3 * k + 1, 3 * k + 2])
+            .collect();
+        object(positions, triangles)
+    }
+
+    /// Virtual vertices of every sample under flat water seen through a membrane of `cells` x `cells`.
+    fn flat_water_geometry(cells: u32, search: ImageSearch, objects: &[Object]) -> VirtualGeometry {
+        let surface = Flat(0.0);
+        let membrane = membrane_of(&surface, grid((-2.0, -2.0), (2.0, 2.0), (cells, cells)));
+        let field = RefractionField::build(
+            &membrane,
+            &surface,
+            setup(FLAT_EYE),
+            query_height_range(objects, &membrane),
+        );
+        build_virtual_geometry(
+            &VirtualGeometryRequest {
+                field: &field,
+                camera: flat_camera(),
+                image_size: IMAGE_SIZE,
+                objects,
+                mean_level_m: 0.0,
+                search,
+            },
+            None,
+        )
+    }
+
+    /// Screen-space error of each drawn virtual vertex against the exact (bisection) one, in pixels
+    /// at the focal length of the test camera, computed from the angle between the two sight
+    /// directions in f64 so f32 screen arithmetic adds no noise.
+    fn flat_screen_errors_px(geometry: &VirtualGeometry) -> Vec<f64> {
+        let focal_px = 0.5 * IMAGE_SIZE.1 as f64 / (0.5 * (FOV_Y_DEG as f64).to_radians()).tan();
+        let eye = FLAT_EYE.as_dvec3();
+        geometry
+            .under_vertices
+            .iter()
+            .map(|v| {
+                let true_position = Vec3::from(v.true_position).as_dvec3();
+                let (exact, _) =
+                    flat_virtual_vertex(eye, true_position, 0.0, N_AIR as f64, N_WATER as f64);
+                let drawn = Vec3::from(v.virtual_position).as_dvec3();
+                let angle = (exact - eye)
+                    .normalize()
+                    .angle_between((drawn - eye).normalize());
+                angle * focal_px
+            })
+            .collect()
+    }
+
+    fn rms(values: &[f64]) -> f64 {
+        (values.iter().map(|v| v * v).sum::<f64>() / values.len() as f64).sqrt()
+    }
+
+    /// Flat water: the drawn virtual vertices land where the exact solution puts them on screen, and
+    /// their depth along the sight ray is the exact eta-scaled path.
+    #[test]
+    fn flat_water_matches_the_bisection_solution_on_screen() {
+        let objects = [flat_sample_object(200)];
+        let geometry = flat_water_geometry(64, ImageSearch::Accelerated, &objects);
+        assert_eq!(
+            geometry.under_vertices.len(),
+            600,
+            "every sample has an image"
+        );
+        assert_eq!(geometry.counts.vertices.outside, 0);
+        assert_eq!(
+            geometry.counts.vertices.convergence, 0,
+            "flat water has no convergence zone"
+        );
+        let camera = flat_camera();
+        let mut worst_px = 0.0_f32;
+        let mut worst_path_m = 0.0_f64;
+        for v in &geometry.under_vertices {
+            let true_position = Vec3::from(v.true_position);
+            let (exact, exact_path_m) = flat_virtual_vertex(
+                FLAT_EYE.as_dvec3(),
+                true_position.as_dvec3(),
+                0.0,
+                N_AIR as f64,
+                N_WATER as f64,
+            );
+            let drawn_px =
+                camera.pixel_of(Vec3::from(v.virtual_position), IMAGE_SIZE.0, IMAGE_SIZE.1);
+            let exact_px = camera.pixel_of(exact.as_vec3(), IMAGE_SIZE.0, IMAGE_SIZE.1);
+            worst_px = worst_px.max(drawn_px.unwrap().distance(exact_px.unwrap()));
+            // The water path |V - S| follows the interpolated sight point, so its error is of the
+            // order of the sight-point error (measured: 0.25 mm worst).
+            worst_path_m = worst_path_m.max((v.water_path_m as f64 - exact_path_m).abs());
+            assert_eq!(v.flags, 0);
+        }
+        eprintln!(
+            "flat water, 64 x 64 cells: worst screen error {worst_px} px, path {worst_path_m} m"
+        );
+        // 6.25 cm facets with the eye 1 m above them, at 1080 rows: the linear interpolation of
+        // the refraction rays across a facet puts the worst of 200 points 0.37 px off (measured),
+        // second order in the spacing (next test). The bound asks for sub-pixel accuracy at this
+        // resolution, which is what the picture needs; it is not the measured value plus slack.
+        assert!(worst_px < 1.0, "worst screen error {worst_px} px");
+        assert!(
+            worst_path_m < 1e-3,
+            "worst water path error {worst_path_m} m"
+        );
+        // And the error is the method's, not zero: the cells are really interpolating.
+        assert!(worst_px > 1e-2, "worst screen error {worst_px} px");
+    }
+
+    /// The error is second order in the membrane spacing: halving the facets divides it by ~4.
+    #[test]
+    fn flat_water_error_is_second_order_in_spacing() {
+        let objects = [flat_sample_object(300)];
+        let errors: Vec<f64> = [8, 16, 32, 64]
+            .into_iter()
+            .map(|cells| {
+                rms(&flat_screen_errors_px(&flat_water_geometry(
+                    cells,
+                    ImageSearch::Accelerated,
+                    &objects,
+                )))
+            })
+            .collect();
+        eprintln!("flat water RMS screen errors for 8, 16, 32, 64 cells: {errors:?} px");
+        for pair in errors.windows(2) {
+            let ratio = pair[0] / pair[1];
+            assert!(
+                (3.0..5.5).contains(&ratio),
+                "errors {errors:?}: ratio {ratio}"
+            );
+        }
+        // Measured: 5.85, 1.44, 0.385, 0.089 px (ratios 4.07, 3.74, 4.31). Far above f32 noise
+        // (~1e-4 px at this distance and focal length) even at the finest grid, so the ratios are
+        // the method's.
+        assert!(errors[3] > 1e-2, "{errors:?}");
+    }
+
+    /// A boundary triangle (under-water vertices with and without an image) is drawn with the
+    /// flat-water position for the imageless one; a triangle whose under-water vertices all lack an
+    /// image is not drawn; vertices above the water never make a triangle boundary, and a vertex on
+    /// the surface is its own virtual vertex, at the same position as in the above part.
+    #[test]
+    fn boundary_and_undrawn_triangles_and_the_water_line() {
+        // The eye is outside the pool (x < -2): deep points near the near wall are seen through
+        // sight points beyond the membrane's edge, so they have no image.
+        let eye = Vec3::new(-5.0, 2.0, 0.0);
+        let surface = Flat(0.0);
+        let membrane = membrane_of(&surface, grid((-2.0, -2.0), (2.0, 2.0), (16, 16)));
+        let positions = vec![
+            Vec3::new(-1.9, -2.0, 0.0), // 0: no image
+            Vec3::new(0.5, -0.3, 0.0),  // 1: image
+            Vec3::new(0.5, -0.3, 0.3),  // 2: image
+            Vec3::new(-1.9, -2.0, 0.3), // 3: no image
+            Vec3::new(-1.8, -2.0, 0.0), // 4: no image
+            Vec3::new(0.8, -0.5, 0.1),  // 5: image
+            Vec3::new(0.6, 0.5, 0.1),   // 6: above water
+        ];
+        let triangles = vec![[0, 1, 2], [0, 3, 4], [1, 2, 5], [1, 6, 2]];
+        let objects = [object(positions.clone(), triangles)];
+        let field = RefractionField::build(
+            &membrane,
+            &surface,
+            setup(eye),
+            query_height_range(&objects, &membrane),
+        );
+        let camera = Camera {
+            eye,
+            target: Vec3::new(0.0, -1.0, 0.0),
+            up: Vec3::Y,
+            fov_y_deg: 60.0,
+        };
+        let request = VirtualGeometryRequest {
+            field: &field,
+            camera,
+            image_size: (640, 480),
+            objects: &objects,
+            mean_level_m: 0.0,
+            search: ImageSearch::Accelerated,
+        };
+        for (i, p) in positions.iter().enumerate().take(6) {
+            let sight = flat_sight_point(eye.as_dvec3(), p.as_dvec3(), 0.0, 1.0, 1.333);
+            let inside = sight.x.abs() < 2.0 && sight.z.abs() < 2.0;
+            assert_eq!(
+                inside,
+                ![0, 3, 4].contains(&i),
+                "scene setup: vertex {i} sight point {sight}"
+            );
+        }
+        let geometry = build_virtual_geometry(&request, None);
+        let counts = geometry.counts;
+        // Vertices 0-5, plus the two crossings where the last triangle meets the water.
+        assert_eq!(counts.vertices.under_water, 6, "{counts:?}");
+        assert_eq!(counts.vertices.outside, 3);
+        assert_eq!(counts.triangles.boundary, 1);
+        assert_eq!(counts.triangles.not_drawn, 1);
+        // [0,1,2], [0,3,4], [1,2,5] and the under-water part of [1,6,2] (one triangle: one vertex
+        // above, so the part below is a quad = two triangles).
+        assert_eq!(counts.triangles.under_water, 5);
+        assert_eq!(geometry.under_vertices.len(), 3 * 4);
+
+        let boundary: Vec<&VirtualVertex> = geometry
+            .under_vertices
+            .iter()
+            .filter(|v| v.flags & flag_bits::BOUNDARY != 0)
+            .collect();
+        assert_eq!(boundary.len(), 3);
+        let imageless = boundary
+            .iter()
+            .find(|v| Vec3::from(v.true_position) == positions[0])
+            .unwrap();
+        let (flat_position, flat_path_m) = flat_virtual_vertex(
+            eye.as_dvec3(),
+            positions[0].as_dvec3(),
+            0.0,
+            1.0,
+            N_WATER as f64,
+        );
+        assert_eq!(
+            Vec3::from(imageless.virtual_position),
+            flat_position.as_vec3()
+        );
+        assert_eq!(imageless.water_path_m, flat_path_m as f32);
+
+        // The part of [1,6,2] under water: not boundary; its surface vertices are their own virtual
+        // vertex, at exactly the position the above part draws them.
+        let surface_vertices: Vec<&VirtualVertex> = geometry
+            .under_vertices
+            .iter()
+            .filter(|v| v.water_path_m == 0.0)
+            .collect();
+        assert!(surface_vertices.len() >= 2);
+        for v in surface_vertices {
+            assert_eq!(v.virtual_position, v.true_position);
+            assert_eq!(v.flags, 0);
+            assert!(geometry
+                .above_vertices
+                .iter()
+                .any(|a| a.position == v.true_position));
+        }
+        assert_eq!(
+            geometry.above_indices.len(),
+            3,
+            "above part of [1,6,2]: one triangle"
+        );
+    }
+
+    /// Under a steep crest (a lens), deep points have several images: the vertex and its triangle
+    /// are flagged, and the one drawn has the least optical path.
+    #[test]
+    fn convergence_zone_under_a_steep_crest() {
+        let surface = Crest { centre_x_m: 0.0 };
+        let membrane = membrane_of(&surface, grid((-1.5, -1.0), (1.5, 1.0), (96, 16)));
+        let eye = Vec3::new(0.0, 2.5, -1.5);
+        let field = RefractionField::build(&membrane, &surface, setup(eye), (-2.5, 0.4));
+        let mut images = Vec::new();
+        let point = [-1.2_f32, -1.6, -2.0]
+            .into_iter()
+            .flat_map(|y| (0..9).map(move |i| Vec3::new(-0.08 + 0.02 * i as f32, y, 0.4)))
+            .find(|&p| {
+                field.images_brute_force(p, &mut images);
+                images.len() > 1
+            })
+            .expect("a point under the crest with several images");
+        let objects = [object(
+            vec![
+                point,
+                point + Vec3::new(0.01, 0.0, 0.0),
+                point + Vec3::new(0.0, 0.0, 0.01),
+            ],
+            vec![[0, 2, 1]],
+        )];
+        let request = VirtualGeometryRequest {
+            field: &field,
+            camera: Camera {
+                eye,
+                target: point,
+                up: Vec3::Y,
+                fov_y_deg: 50.0,
+            },
+            image_size: (640, 480),
+            objects: &objects,
+            mean_level_m: 0.0,
+            search: ImageSearch::Accelerated,
+        };
+        let geometry = build_virtual_geometry(&request, None);
+        assert!(
+            geometry.counts.vertices.convergence >= 1,
+            "{:?}",
+            geometry.counts
+        );
+        assert_eq!(geometry.counts.triangles.convergence, 1);
+        assert!(geometry
+            .under_vertices
+            .iter()
+            .all(|v| v.flags & flag_bits::CONVERGENCE != 0));
+
+        // The chosen image: least optical path over every image, found independently here.
+        field.images_brute_force(point, &mut images);
+        let optical = |s: Vec3| {
+            N_AIR as f64 * (s.as_dvec3() - eye.as_dvec3()).length()
+                + N_WATER as f64 * (point.as_dvec3() - s.as_dvec3()).length()
+        };
+        let least = images
+            .iter()
+            .min_by(|a, b| optical(a.sight_point).total_cmp(&optical(b.sight_point)))
+            .unwrap();
+        let drawn = geometry
+            .under_vertices
+            .iter()
+            .find(|v| Vec3::from(v.true_position) == point)
+            .unwrap();
+        let expected = virtual_vertex(
+            eye.as_dvec3(),
+            least.sight_point.as_dvec3(),
+            point.as_dvec3(),
+            N_AIR as f64,
+            N_WATER as f64,
+        );
+        assert_eq!(Vec3::from(drawn.virtual_position), expected.as_vec3());
+        // The images really are different: sight points apart by more than a facet.
+        let spread = images
+            .iter()
+            .map(|i| i.sight_point.x)
+            .fold(f32::NEG_INFINITY, f32::max)
+            - images
+                .iter()
+                .map(|i| i.sight_point.x)
+                .fold(f32::INFINITY, f32::min);
+        assert!(spread > 3.0 / 96.0, "sight points {images:?}");
+    }
+
+    /// A vertex with one under-water corner (the others above): the only tracked vertex is that one.
+    fn probe_object(point: Vec3) -> Object {
+        object(
+            vec![
+                point,
+                Vec3::new(point.x + 0.05, 1.0, point.z),
+                Vec3::new(point.x, 1.0, point.z + 0.05),
+            ],
+            vec![[0, 2, 1]],
+        )
+    }
+
+    /// The crest moves across a deep point between two frames: the least-path image switches to the
+    /// other side of the crest (a facet that is no neighbour) and the vertex jumps on screen: popping.
+    /// The tracking state of frame t-1 recomputed alone is the one a sequential render carries over.
+    #[test]
+    fn crest_passing_over_a_point_pops() {
+        let eye = Vec3::new(0.0, 2.5, -1.5);
+        let point = Vec3::new(0.0, -2.0, 0.4);
+        let objects = [probe_object(point)];
+        let extent = grid((-1.5, -1.0), (1.5, 1.0), (96, 16));
+        let (before_surface, after_surface) =
+            (Crest { centre_x_m: -0.05 }, Crest { centre_x_m: 0.05 });
+        let (before_membrane, after_membrane) = (
+            membrane_of(&before_surface, extent),
+            membrane_of(&after_surface, extent),
+        );
+        let before_field =
+            RefractionField::build(&before_membrane, &before_surface, setup(eye), (-2.5, 0.4));
+        let after_field =
+            RefractionField::build(&after_membrane, &after_surface, setup(eye), (-2.5, 0.4));
+        let camera = Camera {
+            eye,
+            target: point,
+            up: Vec3::Y,
+            fov_y_deg: 50.0,
+        };
+        let request = |field| VirtualGeometryRequest {
+            field,
+            camera,
+            image_size: (640, 480),
+            objects: &objects,
+            mean_level_m: 0.0,
+            search: ImageSearch::Accelerated,
+        };
+        let before = build_virtual_geometry(&request(&before_field), None);
+        assert_eq!(
+            before.tracking,
+            tracking_state(&request(&before_field)),
+            "tracking is pure"
+        );
+        let after = build_virtual_geometry(&request(&after_field), Some(&before.tracking));
+        assert_eq!(
+            after.tracking,
+            tracking_state(&request(&after_field)),
+            "previous state changes nothing"
+        );
+
+        let (
+            TrackedVertex::Seen {
+                facet: a,
+                pixel: Some(pa),
+            },
+            TrackedVertex::Seen {
+                facet: b,
+                pixel: Some(pb),
+            },
+        ) = (
+            before.tracking.vertices[0][0],
+            after.tracking.vertices[0][0],
+        )
+        else {
+            panic!(
+                "the point must be seen in both frames: {:?}",
+                (before.tracking, after.tracking)
+            );
+        };
+        assert!(before.counts.vertices.convergence == 1 && after.counts.vertices.convergence == 1);
+        assert!(
+            !facets_adjacent(&after_membrane.triangles, a, b),
+            "facets {a} and {b}"
+        );
+        assert!(pa.distance(pb) > 2.0, "{pa} -> {pb}");
+        assert_eq!(after.counts.vertices.under_water, 1);
+        assert_eq!(after.counts.vertices.popping, 1);
+        assert_eq!(
+            after.counts.triangles.popping,
+            after.counts.triangles.under_water
+        );
+        assert!(after
+            .under_vertices
+            .iter()
+            .all(|v| v.flags & flag_bits::POPPING != 0));
+        // Without a previous frame nothing is judged.
+        assert_eq!(before.counts.vertices.popping, 0);
+    }
+
+    /// The eye moves a little over flat water until a deep point's sight point crosses into the
+    /// neighbouring facet: a continuation, not popping.
+    #[test]
+    fn crossing_into_a_neighbouring_cell_does_not_pop() {
+        let surface = Flat(0.0);
+        let membrane = membrane_of(&surface, grid((-2.0, -2.0), (2.0, 2.0), (16, 16)));
+        let point = Vec3::new(0.3, -1.0, 0.5);
+        let objects = [probe_object(point)];
+        let frame = |eye: Vec3, previous: Option<&TrackingState>| {
+            let field = RefractionField::build(&membrane, &surface, setup(eye), (-1.5, 0.1));
+            build_virtual_geometry(
+                &VirtualGeometryRequest {
+                    field: &field,
+                    camera: Camera {
+                        eye,
+                        target: point,
+                        up: Vec3::Y,
+                        fov_y_deg: 50.0,
+                    },
+                    image_size: (640, 480),
+                    objects: &objects,
+                    mean_level_m: 0.0,
+                    search: ImageSearch::Accelerated,
+                },
+                previous,
+            )
+        };
+        let facet_of = |g: &VirtualGeometry| match g.tracking.vertices[0][0] {
+            TrackedVertex::Seen { facet, .. } => facet,
+            other => panic!("{other:?}"),
+        };
+        let mut eye = Vec3::new(0.2, 1.0, -1.7);
+        let mut previous = frame(eye, None);
+        for _ in 0..200 {
+            eye.x += 0.005;
+            let current = frame(eye, Some(&previous.tracking));
+            assert_eq!(current.counts.vertices.popping, 0);
+            if facet_of(&current) != facet_of(&previous) {
+                assert!(facets_adjacent(
+                    &membrane.triangles,
+                    facet_of(&previous),
+                    facet_of(&current)
+                ));
+                return;
+            }
+            previous = current;
+        }
+        panic!("the sight point never left its facet: the test moved the eye too little");
+    }
+
+    /// A tessellated wall standing in the wavy water (x from -1.4 to 1.4, y from -2 to 0.8, at z):
+    /// many vertices under a moving crest, triangles crossing the surface.
+    fn wall_object(z: f32, n: u32) -> Object {
+        let mut positions = Vec::new();
+        for j in 0..=n {
+            for i in 0..=n {
+                let (u, v) = (i as f32 / n as f32, j as f32 / n as f32);
+                positions.push(Vec3::new(-1.4 + 2.8 * u, -2.0 + 2.8 * v, z + 0.3 * u * v));
+            }
+        }
+        let mut triangles = Vec::new();
+        for j in 0..n {
+            for i in 0..n {
+                let a = j * (n + 1) + i;
+                triangles.push([a, a + 1, a + n + 2]);
+                triangles.push([a, a + n + 2, a + n + 1]);
+            }
+        }
+        object(positions, triangles)
+    }
+
+    /// The whole frame (geometry, counts, tracking, popping against a previous frame) is the same
+    /// with the accelerated search as with the brute-force oracle, and the same bytes when rendered
+    /// twice. Where the wall meets the water, the under-water part's surface vertices are exactly
+    /// the above part's: no seam.
+    #[test]
+    fn accelerated_frame_equals_brute_force_frame_and_is_deterministic() {
+        let eye = Vec3::new(0.3, 2.5, -1.5);
+        let extent = grid((-1.5, -1.0), (1.5, 1.0), (48, 16));
+        let objects = [wall_object(0.4, 24), wall_object(-0.2, 17)];
+        let camera = Camera {
+            eye,
+            target: Vec3::new(0.0, -1.0, 0.3),
+            up: Vec3::Y,
+            fov_y_deg: 60.0,
+        };
+        let frame = |centre_x_m: f64, search: ImageSearch, previous: Option<&TrackingState>| {
+            let surface = Crest { centre_x_m };
+            let membrane = membrane_of(&surface, extent);
+            let field = RefractionField::build(
+                &membrane,
+                &surface,
+                setup(eye),
+                query_height_range(&objects, &membrane),
+            );
+            let request = VirtualGeometryRequest {
+                field: &field,
+                camera,
+                image_size: (640, 480),
+                objects: &objects,
+                mean_level_m: 0.0,
+                search,
+            };
+            build_virtual_geometry(&request, previous)
+        };
+        let before = frame(-0.1, ImageSearch::Accelerated, None);
+        let fast = frame(0.1, ImageSearch::Accelerated, Some(&before.tracking));
+        let oracle = frame(0.1, ImageSearch::BruteForce, Some(&before.tracking));
+        let again = frame(0.1, ImageSearch::Accelerated, Some(&before.tracking));
+        let counts = fast.counts;
+        assert!(counts.vertices.under_water > 500, "{counts:?}");
+        assert!(
+            counts.vertices.convergence > 0,
+            "the crest must focus: {counts:?}"
+        );
+        assert!(
+            counts.vertices.popping > 0,
+            "the moving crest must make something pop: {counts:?}"
+        );
+        assert_eq!(fast.counts, oracle.counts);
+        assert_eq!(fast.tracking, oracle.tracking);
+        assert_eq!(fast.under_vertices, oracle.under_vertices);
+        assert_eq!(fast.above_vertices, oracle.above_vertices);
+        assert_eq!(fast.above_indices, oracle.above_indices);
+        assert_eq!(
+            bytemuck::cast_slice::<VirtualVertex, u8>(&fast.under_vertices),
+            bytemuck::cast_slice::<VirtualVertex, u8>(&again.under_vertices)
+        );
+        assert_eq!(fast.counts, again.counts);
+
+        let surface_vertices: Vec<&VirtualVertex> = fast
+            .under_vertices
+            .iter()
+            .filter(|v| v.water_path_m == 0.0)
+            .collect();
+        assert!(surface_vertices.len() > 20);
+        for v in surface_vertices {
+            assert_eq!(v.virtual_position, v.true_position);
+            assert!(
+                fast.above_vertices
+                    .iter()
+                    .any(|a| a.position == v.true_position && a.material == v.material),
+                "{v:?} has no twin above the water"
+            );
+        }
+    }
+}
