@@ -11,6 +11,10 @@
 //! position like any other under-water vertex, so the picture shows a step there. This is the
 //! honest rendering of a scene that has water without a wall: the membrane should cover every
 //! object that goes under it.
+//!
+//! Classification is per vertex, so each edge is cut at most once and each triangle by one straight
+//! line: object tessellation must be finer than the waves' features (an edge whose two ends are
+//! above water but which dips under a trough between them is not cut).
 
 use glam::{DVec3, Vec2, Vec3};
 
