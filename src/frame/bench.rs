@@ -73,7 +73,10 @@ pub fn run(scene_path: &Path, frames: u32) -> Result<BenchFigures, SnellError> {
     let refraction = RefractionFigures {
         vertices_per_sec: search.vertices_per_sec,
         speedup_vs_brute_force: search.speedup_vs_brute_force,
-        scenario: search.scenario.clone(),
+        scenario: format!(
+            "{} true vertices under a {}-facet membrane; thesis scale {} vertices x {} facets, {} mismatches against brute force",
+            search.pool_vertices, search.pool_facets, search.thesis_vertices, search.thesis_facets, search.thesis_mismatched_vertices
+        ),
     };
 
     let (width, height) = (1280, 720);

@@ -17,7 +17,8 @@ use crate::mesh::{Object, Texture};
 use crate::output::OutputError;
 use crate::refraction::flags::{FlagCounts, CONVERGENCE_POLICY};
 use crate::refraction::search::{CellMode, RefractionField, RefractionSetup};
-use crate::refraction::virtual_geometry::{self, VertexTracking};
+use crate::refraction::flags::TrackingState as VertexTracking;
+use crate::refraction::virtual_geometry::{build_virtual_geometry, ImageSearch, VirtualGeometryRequest};
 use crate::scene::{Scene, SceneError};
 use crate::timeline::{CameraTrack, Timeline};
 use crate::water::{build_membrane, HeightField, Membrane, Wave, WaveField};
@@ -207,7 +208,15 @@ impl RenderJob {
             cell_mode: CellMode::EqualT,
         };
         let field = RefractionField::build(&membrane, &surface, setup, self.query_y_range);
-        let geometry = virtual_geometry::refract_objects(&field, &camera, width, height, &self.objects, previous);
+        let request = VirtualGeometryRequest {
+            field: &field,
+            camera,
+            image_size: (width, height),
+            objects: &self.objects,
+            mean_level_m: self.waves.level_m as f32,
+            search: ImageSearch::Accelerated,
+        };
+        let geometry = build_virtual_geometry(&request, previous);
         stage_secs.insert("refraction".to_string(), clock.elapsed().as_secs_f64());
 
         let draw = FrameDraw {
