@@ -91,11 +91,17 @@ impl GpuContext {
         let adapter_info = adapter.get_info();
         let available = adapter.features();
         let mut required_features = wgpu::Features::empty();
+        let mut required_limits = wgpu::Limits::default().using_resolution(adapter.limits());
 
-        // Float32 blending is a device feature: without it a float32 target cannot take pass d's blend.
+        // Float32 blending is a device feature: without it a float32 target cannot take pass d's
+        // blend. Beauty (16) + position (16) + flags (4) bytes per sample also exceed the default
+        // limit of 32, so float32 beauty needs the adapter to allow more.
+        let float32_bytes_per_sample = 16 + 16 + 4;
         let beauty = if available.contains(wgpu::Features::FLOAT32_BLENDABLE)
             && renders_and_blends(&adapter, wgpu::TextureFormat::Rgba32Float)
+            && adapter.limits().max_color_attachment_bytes_per_sample >= float32_bytes_per_sample
         {
+            required_limits.max_color_attachment_bytes_per_sample = float32_bytes_per_sample;
             required_features |= wgpu::Features::FLOAT32_BLENDABLE;
             wgpu::TextureFormat::Rgba32Float
         } else {
@@ -111,7 +117,7 @@ impl GpuContext {
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("snell"),
             required_features,
-            required_limits: wgpu::Limits::default().using_resolution(adapter.limits()),
+            required_limits,
             experimental_features: wgpu::ExperimentalFeatures::disabled(),
             memory_hints: wgpu::MemoryHints::Performance,
             trace: wgpu::Trace::Off,

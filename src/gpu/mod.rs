@@ -517,19 +517,28 @@ fn create_pipelines(
     })
 }
 
-/// Pops an error scope pushed by [`push_scopes`] and turns what it caught into a [`GpuError`].
-fn pop_scopes(scopes: [wgpu::ErrorScopeGuard; 2], stage: &'static str) -> Result<(), GpuError> {
+/// Runs `work` inside out-of-memory and validation error scopes, so wgpu errors come back as a
+/// [`GpuError`] naming `stage` instead of panicking; the scopes are popped on every path.
+fn within_error_scopes<T>(
+    device: &wgpu::Device,
+    stage: &'static str,
+    work: impl FnOnce() -> Result<T, GpuError>,
+) -> Result<T, GpuError> {
+    let out_of_memory = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+    let validation = device.push_error_scope(wgpu::ErrorFilter::Validation);
+    let result = work();
     // Scopes pop innermost first.
-    let [out_of_memory, validation] = scopes;
     let caught = [validation.pop(), out_of_memory.pop()].map(pollster::block_on);
     match caught.into_iter().flatten().next() {
-        Some(error) => Err(GpuError::Wgpu { stage, message: error.to_string() }),
-        None => Ok(()),
+        Some(error) => {
+            let message = match &error {
+                wgpu::Error::Validation { description, .. } => description.clone(),
+                other => format!("{other}: {other:?}"),
+            };
+            Err(GpuError::Wgpu { stage, message })
+        }
+        None => result,
     }
-}
-
-fn push_scopes(device: &wgpu::Device) -> [wgpu::ErrorScopeGuard; 2] {
-    [device.push_error_scope(wgpu::ErrorFilter::OutOfMemory), device.push_error_scope(wgpu::ErrorFilter::Validation)]
 }
 
 /// The headless renderer: device, pipelines, and buffers and targets reused across frames.
@@ -594,8 +603,12 @@ impl Renderer {
     /// Opens the adapter (Vulkan if present, else GL; `WGPU_BACKEND` honoured) and builds the pipelines.
     pub fn new() -> Result<Renderer, GpuError> {
         let context = GpuContext::new()?;
+        let device = context.device.clone();
+        within_error_scopes(&device, "creating the pipelines", move || Renderer::build(context))
+    }
+
+    fn build(context: GpuContext) -> Result<Renderer, GpuError> {
         let device = &context.device;
-        let scopes = push_scopes(device);
         let uniform_entry = |binding| wgpu::BindGroupLayoutEntry {
             binding,
             visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
@@ -646,7 +659,6 @@ impl Renderer {
         let texture_array = textures::upload_textures(device, &context.queue, &[])?;
         let bind_group =
             make_bind_group(device, &bind_group_layout, &frame_uniform, &material_uniform, &texture_array.view, &sampler);
-        pop_scopes(scopes, "creating the pipelines")?;
         let vertex = wgpu::BufferUsages::VERTEX;
         let index = wgpu::BufferUsages::INDEX;
         Ok(Renderer {
@@ -680,18 +692,20 @@ impl Renderer {
     /// Replaces the scene's textures; `DrawMaterial::texture` indexes this list.
     pub fn set_textures(&mut self, textures: &[Texture]) -> Result<(), GpuError> {
         let device = &self.context.device;
-        let scopes = push_scopes(device);
-        let texture_array = textures::upload_textures(device, &self.context.queue, textures)?;
-        self.bind_group = make_bind_group(
-            device,
-            &self.bind_group_layout,
-            &self.frame_uniform,
-            &self.material_uniform,
-            &texture_array.view,
-            &self.sampler,
-        );
-        pop_scopes(scopes, "uploading textures")?;
-        self.texture_layers = texture_array.layer_count;
+        let (bind_group, layer_count) = within_error_scopes(device, "uploading textures", || {
+            let texture_array = textures::upload_textures(device, &self.context.queue, textures)?;
+            let bind_group = make_bind_group(
+                device,
+                &self.bind_group_layout,
+                &self.frame_uniform,
+                &self.material_uniform,
+                &texture_array.view,
+                &self.sampler,
+            );
+            Ok((bind_group, texture_array.layer_count))
+        })?;
+        self.bind_group = bind_group;
+        self.texture_layers = layer_count;
         Ok(())
     }
 
@@ -731,15 +745,26 @@ impl Renderer {
         if self.targets.as_ref().is_none_or(|targets| (targets.width, targets.height) != (width, height)) {
             self.targets = Some(FrameTargets::new(&self.context, width, height));
         }
+        let device = self.context.device.clone();
+        within_error_scopes(&device, "drawing the frame", || {
+            self.draw_frame(draw, view, width, height);
+            Ok(())
+        })?;
+        let targets = self.targets.as_ref().expect("created above");
+        read_back(&device, targets)
+    }
+
+    fn draw_frame(&mut self, draw: &FrameDraw, view: &FrameView, width: u32, height: u32) {
         let device = &self.context.device;
         let queue = &self.context.queue;
-        let scopes = push_scopes(device);
-
         queue.write_buffer(&self.frame_uniform, 0, bytemuck::bytes_of(&FrameUniform::new(view, width, height)));
-        let materials: Vec<[f32; 4]> = draw
+        let materials: Vec<[u32; 4]> = draw
             .materials
             .iter()
-            .map(|material| vec4(material.tint_linear, f32::from_bits(material.texture)))
+            .map(|material| {
+                let tint = material.tint_linear.to_array().map(f32::to_bits);
+                [tint[0], tint[1], tint[2], material.texture]
+            })
             .collect();
         if !materials.is_empty() {
             queue.write_buffer(&self.material_uniform, 0, bytemuck::cast_slice(&materials));
@@ -755,8 +780,6 @@ impl Renderer {
         self.encode_passes(&mut encoder, draw, targets);
         targets.copy_to_readback(&mut encoder);
         queue.submit([encoder.finish()]);
-        pop_scopes(scopes, "drawing the frame")?;
-        read_back(device, targets)
     }
 
     fn encode_passes(&self, encoder: &mut wgpu::CommandEncoder, draw: &FrameDraw, targets: &FrameTargets) {

@@ -94,7 +94,7 @@ pub(crate) fn upload_textures(
         validate_texture(index, texture)?;
     }
     let limits = device.limits();
-    if textures.len() > limits.max_texture_array_layers as usize {
+    if textures.len().max(2) > limits.max_texture_array_layers as usize {
         return Err(GpuError::TooManyTextures { count: textures.len(), max: limits.max_texture_array_layers as usize });
     }
     let max_side = limits.max_texture_dimension_2d;
@@ -102,10 +102,13 @@ pub(crate) fn upload_textures(
     let height = textures.iter().map(|t| t.height).max().unwrap_or(1).min(max_side);
     let mip_level_count = 32 - width.max(height).leading_zeros();
     let layer_count = textures.len() as u32;
+    // wgpu's GL backend makes a one-layer texture a plain TEXTURE_2D, which a D2Array view then
+    // samples as black: allocate a spare layer so it is always a TEXTURE_2D_ARRAY.
+    let allocated_layers = layer_count.max(2);
 
     let gpu_texture = device.create_texture(&wgpu::TextureDescriptor {
         label: Some("scene textures"),
-        size: wgpu::Extent3d { width, height, depth_or_array_layers: layer_count },
+        size: wgpu::Extent3d { width, height, depth_or_array_layers: allocated_layers },
         mip_level_count,
         sample_count: 1,
         dimension: wgpu::TextureDimension::D2,
