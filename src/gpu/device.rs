@@ -40,7 +40,9 @@ fn backend_rank(backend: wgpu::Backend) -> u32 {
 fn choose_adapter(instance: &wgpu::Instance) -> Result<wgpu::Adapter, GpuError> {
     let backends = wgpu::Backends::from_env().unwrap_or(wgpu::Backends::all());
     let adapters = pollster::block_on(instance.enumerate_adapters(backends));
-    let wanted_name = std::env::var("WGPU_ADAPTER_NAME").ok().map(|name| name.to_lowercase());
+    let wanted_name = std::env::var("WGPU_ADAPTER_NAME")
+        .ok()
+        .map(|name| name.to_lowercase());
     let found: Vec<String> = adapters
         .iter()
         .map(|adapter| {
@@ -59,7 +61,11 @@ fn choose_adapter(instance: &wgpu::Instance) -> Result<wgpu::Adapter, GpuError> 
         .ok_or_else(|| GpuError::NoAdapter {
             backends: format!("{backends:?}"),
             wanted_name: wanted_name.unwrap_or_default(),
-            found: if found.is_empty() { "none".to_string() } else { found.join(", ") },
+            found: if found.is_empty() {
+                "none".to_string()
+            } else {
+                found.join(", ")
+            },
         })
 }
 
@@ -70,7 +76,10 @@ fn summary_of(info: &wgpu::AdapterInfo) -> String {
         (true, false) => info.driver_info.clone(),
         (false, false) => format!("{} {}", info.driver, info.driver_info),
     };
-    format!("{} ({:?}, {:?}, {})", info.name, info.backend, info.device_type, driver)
+    format!(
+        "{} ({:?}, {:?}, {})",
+        info.name, info.backend, info.device_type, driver
+    )
 }
 
 /// Name, backend and driver of the adapter a renderer would use, without creating a device.
@@ -81,8 +90,12 @@ pub fn probe_adapter() -> Result<String, GpuError> {
 
 fn renders_and_blends(adapter: &wgpu::Adapter, format: wgpu::TextureFormat) -> bool {
     let features = adapter.get_texture_format_features(format);
-    features.allowed_usages.contains(wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC)
-        && features.flags.contains(wgpu::TextureFormatFeatureFlags::BLENDABLE)
+    features
+        .allowed_usages
+        .contains(wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC)
+        && features
+            .flags
+            .contains(wgpu::TextureFormatFeatureFlags::BLENDABLE)
 }
 
 impl GpuContext {
@@ -122,9 +135,20 @@ impl GpuContext {
             memory_hints: wgpu::MemoryHints::Performance,
             trace: wgpu::Trace::Off,
         }))
-        .map_err(|source| GpuError::RequestDevice { adapter: summary_of(&adapter_info), source })?;
+        .map_err(|source| GpuError::RequestDevice {
+            adapter: summary_of(&adapter_info),
+            source,
+        })?;
 
-        Ok(GpuContext { adapter_info, device, queue, formats: TargetFormats { beauty, depth_stencil } })
+        Ok(GpuContext {
+            adapter_info,
+            device,
+            queue,
+            formats: TargetFormats {
+                beauty,
+                depth_stencil,
+            },
+        })
     }
 
     pub fn summary(&self) -> String {
