@@ -24,11 +24,12 @@ struct Frame {
     water: vec4<f32>,
 };
 
-// One material: rgb = linear tint, w = texture layer (as bits).
+// One material: xyz = bits of the linear tint, w = texture layer. Stored as integers so the layer
+// index is never a float bit pattern (a small integer is a denormal a driver may flush to zero).
 const MAX_MATERIALS: u32 = 1024u;
 
 struct Materials {
-    entries: array<vec4<f32>, 1024>,
+    entries: array<vec4<u32>, 1024>,
 };
 
 @group(0) @binding(0) var<uniform> frame: Frame;
@@ -99,9 +100,8 @@ fn schlick_reflectance(incident: vec3<f32>, normal: vec3<f32>) -> f32 {
 // Linear albedo of a material at texture coordinates `uv`: tint times the (sRGB-decoded) texture.
 fn albedo(material: u32, uv: vec2<f32>) -> vec3<f32> {
     let entry = materials.entries[min(material, MAX_MATERIALS - 1u)];
-    let layer = bitcast<u32>(entry.w);
-    let texel = textureSample(textures, texture_sampler, uv, layer);
-    return entry.xyz * texel.xyz;
+    let texel = textureSample(textures, texture_sampler, uv, entry.w);
+    return bitcast<vec3<f32>>(entry.xyz) * texel.xyz;
 }
 
 // Lambert from the sun plus sky ambient, for surfaces on the eye's side of the water.

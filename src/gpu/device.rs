@@ -40,7 +40,9 @@ fn backend_rank(backend: wgpu::Backend) -> u32 {
 fn choose_adapter(instance: &wgpu::Instance) -> Result<wgpu::Adapter, GpuError> {
     let backends = wgpu::Backends::from_env().unwrap_or(wgpu::Backends::all());
     let adapters = pollster::block_on(instance.enumerate_adapters(backends));
-    let wanted_name = std::env::var("WGPU_ADAPTER_NAME").ok().map(|name| name.to_lowercase());
+    let wanted_name = std::env::var("WGPU_ADAPTER_NAME")
+        .ok()
+        .map(|name| name.to_lowercase());
     let found: Vec<String> = adapters
         .iter()
         .map(|adapter| {
@@ -59,7 +61,11 @@ fn choose_adapter(instance: &wgpu::Instance) -> Result<wgpu::Adapter, GpuError> 
         .ok_or_else(|| GpuError::NoAdapter {
             backends: format!("{backends:?}"),
             wanted_name: wanted_name.unwrap_or_default(),
-            found: if found.is_empty() { "none".to_string() } else { found.join(", ") },
+            found: if found.is_empty() {
+                "none".to_string()
+            } else {
+                found.join(", ")
+            },
         })
 }
 
@@ -70,7 +76,10 @@ fn summary_of(info: &wgpu::AdapterInfo) -> String {
         (true, false) => info.driver_info.clone(),
         (false, false) => format!("{} {}", info.driver, info.driver_info),
     };
-    format!("{} ({:?}, {:?}, {})", info.name, info.backend, info.device_type, driver)
+    format!(
+        "{} ({:?}, {:?}, {})",
+        info.name, info.backend, info.device_type, driver
+    )
 }
 
 /// Name, backend and driver of the adapter a renderer would use, without creating a device.
@@ -81,8 +90,12 @@ pub fn probe_adapter() -> Result<String, GpuError> {
 
 fn renders_and_blends(adapter: &wgpu::Adapter, format: wgpu::TextureFormat) -> bool {
     let features = adapter.get_texture_format_features(format);
-    features.allowed_usages.contains(wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC)
-        && features.flags.contains(wgpu::TextureFormatFeatureFlags::BLENDABLE)
+    features
+        .allowed_usages
+        .contains(wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC)
+        && features
+            .flags
+            .contains(wgpu::TextureFormatFeatureFlags::BLENDABLE)
 }
 
 impl GpuContext {
@@ -91,11 +104,17 @@ impl GpuContext {
         let adapter_info = adapter.get_info();
         let available = adapter.features();
         let mut required_features = wgpu::Features::empty();
+        let mut required_limits = wgpu::Limits::default().using_resolution(adapter.limits());
 
-        // Float32 blending is a device feature: without it a float32 target cannot take pass d's blend.
+        // Float32 blending is a device feature: without it a float32 target cannot take pass d's
+        // blend. Beauty (16) + position (16) + flags (4) bytes per sample also exceed the default
+        // limit of 32, so float32 beauty needs the adapter to allow more.
+        let float32_bytes_per_sample = 16 + 16 + 4;
         let beauty = if available.contains(wgpu::Features::FLOAT32_BLENDABLE)
             && renders_and_blends(&adapter, wgpu::TextureFormat::Rgba32Float)
+            && adapter.limits().max_color_attachment_bytes_per_sample >= float32_bytes_per_sample
         {
+            required_limits.max_color_attachment_bytes_per_sample = float32_bytes_per_sample;
             required_features |= wgpu::Features::FLOAT32_BLENDABLE;
             wgpu::TextureFormat::Rgba32Float
         } else {
@@ -111,14 +130,25 @@ impl GpuContext {
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("snell"),
             required_features,
-            required_limits: wgpu::Limits::default().using_resolution(adapter.limits()),
+            required_limits,
             experimental_features: wgpu::ExperimentalFeatures::disabled(),
             memory_hints: wgpu::MemoryHints::Performance,
             trace: wgpu::Trace::Off,
         }))
-        .map_err(|source| GpuError::RequestDevice { adapter: summary_of(&adapter_info), source })?;
+        .map_err(|source| GpuError::RequestDevice {
+            adapter: summary_of(&adapter_info),
+            source,
+        })?;
 
-        Ok(GpuContext { adapter_info, device, queue, formats: TargetFormats { beauty, depth_stencil } })
+        Ok(GpuContext {
+            adapter_info,
+            device,
+            queue,
+            formats: TargetFormats {
+                beauty,
+                depth_stencil,
+            },
+        })
     }
 
     pub fn summary(&self) -> String {

@@ -24,8 +24,8 @@ use glam::{Mat4, Vec3};
 use crate::draw::{FrameDraw, FrameView, MembraneVertex, RenderedFrame, TrueVertex, VirtualVertex};
 use crate::mesh::Texture;
 
-use device::{GpuContext, FLAGS_FORMAT, POSITION_FORMAT};
 pub use device::probe_adapter;
+use device::{GpuContext, FLAGS_FORMAT, POSITION_FORMAT};
 
 /// Most materials one frame can use: the uniform array in `shaders/common.inc.wgsl` (16 bytes
 /// each; 16 KiB is the uniform binding size every backend guarantees).
@@ -38,7 +38,11 @@ pub enum GpuError {
          on a machine without a GPU install Mesa (libegl-mesa0 for GL, mesa-vulkan-drivers for Vulkan)",
         if wanted_name.is_empty() { String::new() } else { format!(", WGPU_ADAPTER_NAME contains \"{wanted_name}\"") }
     )]
-    NoAdapter { backends: String, wanted_name: String, found: String },
+    NoAdapter {
+        backends: String,
+        wanted_name: String,
+        found: String,
+    },
     #[error("adapter {adapter} refused to create a device: {source}")]
     RequestDevice {
         adapter: String,
@@ -46,7 +50,10 @@ pub enum GpuError {
         source: wgpu::RequestDeviceError,
     },
     #[error("wgpu reported an error while {stage}: {message}")]
-    Wgpu { stage: &'static str, message: String },
+    Wgpu {
+        stage: &'static str,
+        message: String,
+    },
     #[error("waiting for the GPU failed: {0}")]
     Poll(#[from] wgpu::PollError),
     #[error("reading the rendered frame back failed: {0}")]
@@ -54,15 +61,30 @@ pub enum GpuError {
     #[error("render size {width}x{height} is not possible: each side must be between 1 and {max} pixels")]
     BadSize { width: u32, height: u32, max: u32 },
     #[error("texture {index} (\"{name}\") is {width}x{height} but holds {bytes} bytes; it needs width * height * 4 > 0")]
-    BadTexture { index: usize, name: String, width: u32, height: u32, bytes: usize },
+    BadTexture {
+        index: usize,
+        name: String,
+        width: u32,
+        height: u32,
+        bytes: usize,
+    },
     #[error("{count} textures are more than this adapter's {max} texture array layers")]
     TooManyTextures { count: usize, max: usize },
     #[error("{count} materials are more than the renderer's {max}")]
     TooManyMaterials { count: usize, max: usize },
     #[error("material {material} uses texture {texture}, but only {count} textures were uploaded")]
-    TextureOutOfRange { material: usize, texture: u32, count: u32 },
+    TextureOutOfRange {
+        material: usize,
+        texture: u32,
+        count: u32,
+    },
     #[error("{list}[{index}] refers to {value}, but there are only {count}")]
-    IndexOutOfRange { list: &'static str, index: usize, value: u32, count: usize },
+    IndexOutOfRange {
+        list: &'static str,
+        index: usize,
+        value: u32,
+        count: usize,
+    },
     #[error("under_vertices holds {count} vertices, not a whole number of triangles")]
     PartialTriangle { count: usize },
 }
@@ -103,7 +125,10 @@ impl FrameUniform {
             viewport: [width as f32, height as f32, 0.0, 0.0],
             sky_zenith: vec4(lighting.sky_zenith_linear, 0.0),
             sky_horizon: vec4(lighting.sky_horizon_linear, 0.0),
-            sun_direction: vec4(lighting.sun_direction, shading::sun_disk_cos_radius(lighting)),
+            sun_direction: vec4(
+                lighting.sun_direction,
+                shading::sun_disk_cos_radius(lighting),
+            ),
             sun_color: vec4(lighting.sun_color_linear, shading::sun_disk_gain(lighting)),
             ambient: vec4(lighting.ambient_linear, 0.0),
             absorption_per_m: vec4(water.absorption_per_m, 0.0),
@@ -126,12 +151,20 @@ struct GrowingBuffer {
 
 impl GrowingBuffer {
     fn new(label: &'static str, usage: wgpu::BufferUsages) -> GrowingBuffer {
-        GrowingBuffer { label, usage: usage | wgpu::BufferUsages::COPY_DST, buffer: None }
+        GrowingBuffer {
+            label,
+            usage: usage | wgpu::BufferUsages::COPY_DST,
+            buffer: None,
+        }
     }
 
     fn upload(&mut self, device: &wgpu::Device, queue: &wgpu::Queue, bytes: &[u8]) {
         let needed = bytes.len() as u64;
-        if self.buffer.as_ref().is_none_or(|buffer| buffer.size() < needed) {
+        if self
+            .buffer
+            .as_ref()
+            .is_none_or(|buffer| buffer.size() < needed)
+        {
             self.buffer = Some(device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(self.label),
                 size: needed.next_power_of_two().max(4096),
@@ -173,7 +206,11 @@ struct FrameTargets {
 impl FrameTargets {
     fn new(context: &GpuContext, width: u32, height: u32) -> FrameTargets {
         let device = &context.device;
-        let size = wgpu::Extent3d { width, height, depth_or_array_layers: 1 };
+        let size = wgpu::Extent3d {
+            width,
+            height,
+            depth_or_array_layers: 1,
+        };
         let target = |label: &str, format: wgpu::TextureFormat, usage: wgpu::TextureUsages| {
             device.create_texture(&wgpu::TextureDescriptor {
                 label: Some(label),
@@ -190,11 +227,15 @@ impl FrameTargets {
         let beauty = target("beauty", context.formats.beauty, colour_usage);
         let position = target("position", POSITION_FORMAT, colour_usage);
         let flags = target("flags", FLAGS_FORMAT, colour_usage);
-        let depth_stencil =
-            target("depth-stencil", context.formats.depth_stencil, wgpu::TextureUsages::RENDER_ATTACHMENT);
+        let depth_stencil = target(
+            "depth-stencil",
+            context.formats.depth_stencil,
+            wgpu::TextureUsages::RENDER_ATTACHMENT,
+        );
         let beauty_bytes_per_pixel = context.formats.beauty.block_copy_size(None).unwrap_or(16);
 
-        let beauty_bytes = padded_bytes_per_row(width, beauty_bytes_per_pixel) as u64 * height as u64;
+        let beauty_bytes =
+            padded_bytes_per_row(width, beauty_bytes_per_pixel) as u64 * height as u64;
         let position_bytes = padded_bytes_per_row(width, 16) as u64 * height as u64;
         let flags_bytes = padded_bytes_per_row(width, 4) as u64 * height as u64;
         // Every region starts on a padded row, so the offsets keep the 256-byte alignment.
@@ -205,7 +246,8 @@ impl FrameTargets {
             usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
             mapped_at_creation: false,
         });
-        let view = |texture: &wgpu::Texture| texture.create_view(&wgpu::TextureViewDescriptor::default());
+        let view =
+            |texture: &wgpu::Texture| texture.create_view(&wgpu::TextureViewDescriptor::default());
         FrameTargets {
             width,
             height,
@@ -223,8 +265,16 @@ impl FrameTargets {
     }
 
     fn copy_to_readback(&self, encoder: &mut wgpu::CommandEncoder) {
-        let size = wgpu::Extent3d { width: self.width, height: self.height, depth_or_array_layers: 1 };
-        let images = [(&self.beauty, self.beauty_bytes_per_pixel), (&self.position, 16), (&self.flags, 4)];
+        let size = wgpu::Extent3d {
+            width: self.width,
+            height: self.height,
+            depth_or_array_layers: 1,
+        };
+        let images = [
+            (&self.beauty, self.beauty_bytes_per_pixel),
+            (&self.position, 16),
+            (&self.flags, 4),
+        ];
         for ((texture, bytes_per_pixel), offset) in images.into_iter().zip(self.readback_offsets) {
             encoder.copy_texture_to_buffer(
                 wgpu::TexelCopyTextureInfo {
@@ -286,8 +336,12 @@ const NO_WRITES: Writes = Writes {
     position: wgpu::ColorWrites::empty(),
     flags: wgpu::ColorWrites::empty(),
 };
-const ALL_WRITES: Writes =
-    Writes { beauty: wgpu::ColorWrites::ALL, beauty_blend: None, position: wgpu::ColorWrites::ALL, flags: wgpu::ColorWrites::ALL };
+const ALL_WRITES: Writes = Writes {
+    beauty: wgpu::ColorWrites::ALL,
+    beauty_blend: None,
+    position: wgpu::ColorWrites::ALL,
+    flags: wgpu::ColorWrites::ALL,
+};
 /// Inside the stencil: the position's w (distance) is the membrane's, left for the Fresnel draw.
 const UNDER_WATER_WRITES: Writes = Writes {
     beauty: wgpu::ColorWrites::ALL,
@@ -332,52 +386,68 @@ impl PipelineFactory<'_> {
             depth_fail_op: wgpu::StencilOperation::Keep,
             pass_op: depth_stencil.stencil_pass,
         };
-        self.device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some(label),
-            layout: Some(&self.layout),
-            vertex: wgpu::VertexState {
-                module,
-                entry_point: Some(vertex_entry),
-                compilation_options: Default::default(),
-                buffers,
-            },
-            primitive: wgpu::PrimitiveState {
-                topology: wgpu::PrimitiveTopology::TriangleList,
-                // Virtual geometry can mirror a triangle's winding; nothing here is culled.
-                cull_mode: None,
-                ..Default::default()
-            },
-            depth_stencil: Some(wgpu::DepthStencilState {
-                format: self.depth_stencil_format,
-                depth_write_enabled: Some(depth_stencil.depth_write),
-                depth_compare: Some(depth_stencil.depth_compare),
-                stencil: wgpu::StencilState { front: stencil_face, back: stencil_face, read_mask: 0xff, write_mask: 0xff },
-                bias: wgpu::DepthBiasState::default(),
-            }),
-            multisample: wgpu::MultisampleState::default(),
-            fragment: Some(wgpu::FragmentState {
-                module,
-                entry_point: Some(fragment_entry),
-                compilation_options: Default::default(),
-                targets: &[
-                    Some(wgpu::ColorTargetState {
-                        format: self.beauty_format,
-                        blend: writes.beauty_blend,
-                        write_mask: writes.beauty,
-                    }),
-                    Some(wgpu::ColorTargetState { format: POSITION_FORMAT, blend: None, write_mask: writes.position }),
-                    Some(wgpu::ColorTargetState { format: FLAGS_FORMAT, blend: None, write_mask: writes.flags }),
-                ],
-            }),
-            multiview_mask: None,
-            cache: None,
-        })
+        self.device
+            .create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some(label),
+                layout: Some(&self.layout),
+                vertex: wgpu::VertexState {
+                    module,
+                    entry_point: Some(vertex_entry),
+                    compilation_options: Default::default(),
+                    buffers,
+                },
+                primitive: wgpu::PrimitiveState {
+                    topology: wgpu::PrimitiveTopology::TriangleList,
+                    // Virtual geometry can mirror a triangle's winding; nothing here is culled.
+                    cull_mode: None,
+                    ..Default::default()
+                },
+                depth_stencil: Some(wgpu::DepthStencilState {
+                    format: self.depth_stencil_format,
+                    depth_write_enabled: Some(depth_stencil.depth_write),
+                    depth_compare: Some(depth_stencil.depth_compare),
+                    stencil: wgpu::StencilState {
+                        front: stencil_face,
+                        back: stencil_face,
+                        read_mask: 0xff,
+                        write_mask: 0xff,
+                    },
+                    bias: wgpu::DepthBiasState::default(),
+                }),
+                multisample: wgpu::MultisampleState::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module,
+                    entry_point: Some(fragment_entry),
+                    compilation_options: Default::default(),
+                    targets: &[
+                        Some(wgpu::ColorTargetState {
+                            format: self.beauty_format,
+                            blend: writes.beauty_blend,
+                            write_mask: writes.beauty,
+                        }),
+                        Some(wgpu::ColorTargetState {
+                            format: POSITION_FORMAT,
+                            blend: None,
+                            write_mask: writes.position,
+                        }),
+                        Some(wgpu::ColorTargetState {
+                            format: FLAGS_FORMAT,
+                            blend: None,
+                            write_mask: writes.flags,
+                        }),
+                    ],
+                }),
+                multiview_mask: None,
+                cache: None,
+            })
     }
 }
 
 fn shader_module(device: &wgpu::Device, name: &str) -> Result<wgpu::ShaderModule, GpuError> {
-    let assembled = shaders::assembled_shader(name)
-        .ok_or(GpuError::Wgpu { stage: "looking up a shader", message: format!("no shader module named {name}") })?;
+    let assembled = shaders::assembled_shader(name).ok_or(GpuError::Wgpu {
+        stage: "looking up a shader",
+        message: format!("no shader module named {name}"),
+    })?;
     Ok(device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some(assembled.name),
         source: wgpu::ShaderSource::Wgsl(assembled.source.into()),
@@ -444,7 +514,12 @@ fn create_pipelines(
             "fs_sky",
             &[],
             ALL_WRITES,
-            DepthStencil { depth_write: false, depth_compare: Always, stencil_compare: Always, stencil_pass: Keep },
+            DepthStencil {
+                depth_write: false,
+                depth_compare: Always,
+                stencil_compare: Always,
+                stencil_pass: Keep,
+            },
         ),
         above: factory.pipeline(
             "above water",
@@ -453,7 +528,12 @@ fn create_pipelines(
             "fs_above",
             &[Some(above_layout)],
             ALL_WRITES,
-            DepthStencil { depth_write: true, depth_compare: Less, stencil_compare: Always, stencil_pass: Keep },
+            DepthStencil {
+                depth_write: true,
+                depth_compare: Less,
+                stencil_compare: Always,
+                stencil_pass: Keep,
+            },
         ),
         membrane_mark: factory.pipeline(
             "membrane stencil",
@@ -462,7 +542,12 @@ fn create_pipelines(
             "fs_mark",
             &[Some(membrane_layout.clone())],
             NO_WRITES,
-            DepthStencil { depth_write: false, depth_compare: Less, stencil_compare: Always, stencil_pass: Replace },
+            DepthStencil {
+                depth_write: false,
+                depth_compare: Less,
+                stencil_compare: Always,
+                stencil_pass: Replace,
+            },
         ),
         deep_water: factory.pipeline(
             "deep water clear",
@@ -508,7 +593,10 @@ fn create_pipelines(
             &[Some(membrane_layout)],
             Writes {
                 beauty: wgpu::ColorWrites::ALL,
-                beauty_blend: Some(wgpu::BlendState { color: fresnel_blend, alpha: fresnel_blend }),
+                beauty_blend: Some(wgpu::BlendState {
+                    color: fresnel_blend,
+                    alpha: fresnel_blend,
+                }),
                 position: wgpu::ColorWrites::ALPHA,
                 flags: wgpu::ColorWrites::empty(),
             },
@@ -517,19 +605,28 @@ fn create_pipelines(
     })
 }
 
-/// Pops an error scope pushed by [`push_scopes`] and turns what it caught into a [`GpuError`].
-fn pop_scopes(scopes: [wgpu::ErrorScopeGuard; 2], stage: &'static str) -> Result<(), GpuError> {
+/// Runs `work` inside out-of-memory and validation error scopes, so wgpu errors come back as a
+/// [`GpuError`] naming `stage` instead of panicking; the scopes are popped on every path.
+fn within_error_scopes<T>(
+    device: &wgpu::Device,
+    stage: &'static str,
+    work: impl FnOnce() -> Result<T, GpuError>,
+) -> Result<T, GpuError> {
+    let out_of_memory = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+    let validation = device.push_error_scope(wgpu::ErrorFilter::Validation);
+    let result = work();
     // Scopes pop innermost first.
-    let [out_of_memory, validation] = scopes;
     let caught = [validation.pop(), out_of_memory.pop()].map(pollster::block_on);
     match caught.into_iter().flatten().next() {
-        Some(error) => Err(GpuError::Wgpu { stage, message: error.to_string() }),
-        None => Ok(()),
+        Some(error) => {
+            let message = match &error {
+                wgpu::Error::Validation { description, .. } => description.clone(),
+                other => format!("{other}: {other:?}"),
+            };
+            Err(GpuError::Wgpu { stage, message })
+        }
+        None => result,
     }
-}
-
-fn push_scopes(device: &wgpu::Device) -> [wgpu::ErrorScopeGuard; 2] {
-    [device.push_error_scope(wgpu::ErrorFilter::OutOfMemory), device.push_error_scope(wgpu::ErrorFilter::Validation)]
 }
 
 /// The headless renderer: device, pipelines, and buffers and targets reused across frames.
@@ -562,17 +659,37 @@ fn make_bind_group(
         label: Some("frame"),
         layout,
         entries: &[
-            wgpu::BindGroupEntry { binding: 0, resource: frame_uniform.as_entire_binding() },
-            wgpu::BindGroupEntry { binding: 1, resource: material_uniform.as_entire_binding() },
-            wgpu::BindGroupEntry { binding: 2, resource: wgpu::BindingResource::TextureView(textures) },
-            wgpu::BindGroupEntry { binding: 3, resource: wgpu::BindingResource::Sampler(sampler) },
+            wgpu::BindGroupEntry {
+                binding: 0,
+                resource: frame_uniform.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 1,
+                resource: material_uniform.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 2,
+                resource: wgpu::BindingResource::TextureView(textures),
+            },
+            wgpu::BindGroupEntry {
+                binding: 3,
+                resource: wgpu::BindingResource::Sampler(sampler),
+            },
         ],
     })
 }
 
 fn check_indices(list: &'static str, indices: &[u32], vertex_count: usize) -> Result<(), GpuError> {
-    match indices.iter().position(|&index| index as usize >= vertex_count) {
-        Some(at) => Err(GpuError::IndexOutOfRange { list, index: at, value: indices[at], count: vertex_count }),
+    match indices
+        .iter()
+        .position(|&index| index as usize >= vertex_count)
+    {
+        Some(at) => Err(GpuError::IndexOutOfRange {
+            list,
+            index: at,
+            value: indices[at],
+            count: vertex_count,
+        }),
         None => Ok(()),
     }
 }
@@ -584,7 +701,12 @@ fn check_materials<'a>(
 ) -> Result<(), GpuError> {
     for (index, material) in materials.enumerate() {
         if material as usize >= material_count {
-            return Err(GpuError::IndexOutOfRange { list, index, value: material, count: material_count });
+            return Err(GpuError::IndexOutOfRange {
+                list,
+                index,
+                value: material,
+                count: material_count,
+            });
         }
     }
     Ok(())
@@ -594,8 +716,14 @@ impl Renderer {
     /// Opens the adapter (Vulkan if present, else GL; `WGPU_BACKEND` honoured) and builds the pipelines.
     pub fn new() -> Result<Renderer, GpuError> {
         let context = GpuContext::new()?;
+        let device = context.device.clone();
+        within_error_scopes(&device, "creating the pipelines", move || {
+            Renderer::build(context)
+        })
+    }
+
+    fn build(context: GpuContext) -> Result<Renderer, GpuError> {
         let device = &context.device;
-        let scopes = push_scopes(device);
         let uniform_entry = |binding| wgpu::BindGroupLayoutEntry {
             binding,
             visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
@@ -644,9 +772,14 @@ impl Renderer {
         });
         let sampler = textures::repeating_sampler(device);
         let texture_array = textures::upload_textures(device, &context.queue, &[])?;
-        let bind_group =
-            make_bind_group(device, &bind_group_layout, &frame_uniform, &material_uniform, &texture_array.view, &sampler);
-        pop_scopes(scopes, "creating the pipelines")?;
+        let bind_group = make_bind_group(
+            device,
+            &bind_group_layout,
+            &frame_uniform,
+            &material_uniform,
+            &texture_array.view,
+            &sampler,
+        );
         let vertex = wgpu::BufferUsages::VERTEX;
         let index = wgpu::BufferUsages::INDEX;
         Ok(Renderer {
@@ -680,18 +813,20 @@ impl Renderer {
     /// Replaces the scene's textures; `DrawMaterial::texture` indexes this list.
     pub fn set_textures(&mut self, textures: &[Texture]) -> Result<(), GpuError> {
         let device = &self.context.device;
-        let scopes = push_scopes(device);
-        let texture_array = textures::upload_textures(device, &self.context.queue, textures)?;
-        self.bind_group = make_bind_group(
-            device,
-            &self.bind_group_layout,
-            &self.frame_uniform,
-            &self.material_uniform,
-            &texture_array.view,
-            &self.sampler,
-        );
-        pop_scopes(scopes, "uploading textures")?;
-        self.texture_layers = texture_array.layer_count;
+        let (bind_group, layer_count) = within_error_scopes(device, "uploading textures", || {
+            let texture_array = textures::upload_textures(device, &self.context.queue, textures)?;
+            let bind_group = make_bind_group(
+                device,
+                &self.bind_group_layout,
+                &self.frame_uniform,
+                &self.material_uniform,
+                &texture_array.view,
+                &self.sampler,
+            );
+            Ok((bind_group, texture_array.layer_count))
+        })?;
+        self.bind_group = bind_group;
+        self.texture_layers = layer_count;
         Ok(())
     }
 
@@ -701,21 +836,49 @@ impl Renderer {
             return Err(GpuError::BadSize { width, height, max });
         }
         if draw.materials.len() > MAX_MATERIALS {
-            return Err(GpuError::TooManyMaterials { count: draw.materials.len(), max: MAX_MATERIALS });
+            return Err(GpuError::TooManyMaterials {
+                count: draw.materials.len(),
+                max: MAX_MATERIALS,
+            });
         }
-        if let Some((material, texture)) =
-            draw.materials.iter().enumerate().find(|(_, material)| material.texture >= self.texture_layers)
+        if let Some((material, texture)) = draw
+            .materials
+            .iter()
+            .enumerate()
+            .find(|(_, material)| material.texture >= self.texture_layers)
         {
-            return Err(GpuError::TextureOutOfRange { material, texture: texture.texture, count: self.texture_layers });
+            return Err(GpuError::TextureOutOfRange {
+                material,
+                texture: texture.texture,
+                count: self.texture_layers,
+            });
         }
         if draw.under_vertices.len() % 3 != 0 {
-            return Err(GpuError::PartialTriangle { count: draw.under_vertices.len() });
+            return Err(GpuError::PartialTriangle {
+                count: draw.under_vertices.len(),
+            });
         }
-        check_indices("above_indices", &draw.above_indices, draw.above_vertices.len())?;
-        check_indices("membrane_indices", &draw.membrane_indices, draw.membrane_vertices.len())?;
+        check_indices(
+            "above_indices",
+            &draw.above_indices,
+            draw.above_vertices.len(),
+        )?;
+        check_indices(
+            "membrane_indices",
+            &draw.membrane_indices,
+            draw.membrane_vertices.len(),
+        )?;
         let material_count = draw.materials.len();
-        check_materials("above_vertices[..].material", draw.above_vertices.iter().map(|v| v.material), material_count)?;
-        check_materials("under_vertices[..].material", draw.under_vertices.iter().map(|v| v.material), material_count)?;
+        check_materials(
+            "above_vertices[..].material",
+            draw.above_vertices.iter().map(|v| v.material),
+            material_count,
+        )?;
+        check_materials(
+            "under_vertices[..].material",
+            draw.under_vertices.iter().map(|v| v.material),
+            material_count,
+        )?;
         Ok(())
     }
 
@@ -728,44 +891,88 @@ impl Renderer {
         height: u32,
     ) -> Result<RenderedFrame, GpuError> {
         self.validate(draw, width, height)?;
-        if self.targets.as_ref().is_none_or(|targets| (targets.width, targets.height) != (width, height)) {
+        if self
+            .targets
+            .as_ref()
+            .is_none_or(|targets| (targets.width, targets.height) != (width, height))
+        {
             self.targets = Some(FrameTargets::new(&self.context, width, height));
         }
+        let device = self.context.device.clone();
+        let started = std::time::Instant::now();
+        within_error_scopes(&device, "drawing the frame", || {
+            self.draw_frame(draw, view, width, height);
+            Ok(())
+        })?;
+        let submitted = std::time::Instant::now();
+        // Waiting here separately only splits the time between drawing and reading back.
+        device.poll(wgpu::PollType::wait_indefinitely())?;
+        let drawn = std::time::Instant::now();
+        let targets = self.targets.as_ref().expect("created above");
+        let frame = read_back(&device, targets)?;
+        log::debug!(
+            "gpu frame {width}x{height}: upload+encode {:.1} ms, draw {:.1} ms, readback {:.1} ms",
+            (submitted - started).as_secs_f64() * 1e3,
+            (drawn - submitted).as_secs_f64() * 1e3,
+            drawn.elapsed().as_secs_f64() * 1e3
+        );
+        Ok(frame)
+    }
+
+    fn draw_frame(&mut self, draw: &FrameDraw, view: &FrameView, width: u32, height: u32) {
         let device = &self.context.device;
         let queue = &self.context.queue;
-        let scopes = push_scopes(device);
-
-        queue.write_buffer(&self.frame_uniform, 0, bytemuck::bytes_of(&FrameUniform::new(view, width, height)));
-        let materials: Vec<[f32; 4]> = draw
+        queue.write_buffer(
+            &self.frame_uniform,
+            0,
+            bytemuck::bytes_of(&FrameUniform::new(view, width, height)),
+        );
+        let materials: Vec<[u32; 4]> = draw
             .materials
             .iter()
-            .map(|material| vec4(material.tint_linear, f32::from_bits(material.texture)))
+            .map(|material| {
+                let tint = material.tint_linear.to_array().map(f32::to_bits);
+                [tint[0], tint[1], tint[2], material.texture]
+            })
             .collect();
         if !materials.is_empty() {
             queue.write_buffer(&self.material_uniform, 0, bytemuck::cast_slice(&materials));
         }
-        self.above_vertices.upload(device, queue, bytemuck::cast_slice(&draw.above_vertices));
-        self.above_indices.upload(device, queue, bytemuck::cast_slice(&draw.above_indices));
-        self.under_vertices.upload(device, queue, bytemuck::cast_slice(&draw.under_vertices));
-        self.membrane_vertices.upload(device, queue, bytemuck::cast_slice(&draw.membrane_vertices));
-        self.membrane_indices.upload(device, queue, bytemuck::cast_slice(&draw.membrane_indices));
+        self.above_vertices
+            .upload(device, queue, bytemuck::cast_slice(&draw.above_vertices));
+        self.above_indices
+            .upload(device, queue, bytemuck::cast_slice(&draw.above_indices));
+        self.under_vertices
+            .upload(device, queue, bytemuck::cast_slice(&draw.under_vertices));
+        self.membrane_vertices
+            .upload(device, queue, bytemuck::cast_slice(&draw.membrane_vertices));
+        self.membrane_indices
+            .upload(device, queue, bytemuck::cast_slice(&draw.membrane_indices));
 
         let targets = self.targets.as_ref().expect("created above");
-        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("frame") });
+        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("frame"),
+        });
         self.encode_passes(&mut encoder, draw, targets);
         targets.copy_to_readback(&mut encoder);
         queue.submit([encoder.finish()]);
-        pop_scopes(scopes, "drawing the frame")?;
-        read_back(device, targets)
     }
 
-    fn encode_passes(&self, encoder: &mut wgpu::CommandEncoder, draw: &FrameDraw, targets: &FrameTargets) {
+    fn encode_passes(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        draw: &FrameDraw,
+        targets: &FrameTargets,
+    ) {
         let colour = |view| {
             Some(wgpu::RenderPassColorAttachment {
                 view,
                 depth_slice: None,
                 resolve_target: None,
-                ops: wgpu::Operations { load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT), store: wgpu::StoreOp::Store },
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+                    store: wgpu::StoreOp::Store,
+                },
             })
         };
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
@@ -777,8 +984,14 @@ impl Renderer {
             ],
             depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
                 view: &targets.depth_stencil_view,
-                depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Discard }),
-                stencil_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(0), store: wgpu::StoreOp::Discard }),
+                depth_ops: Some(wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(1.0),
+                    store: wgpu::StoreOp::Discard,
+                }),
+                stencil_ops: Some(wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(0),
+                    store: wgpu::StoreOp::Discard,
+                }),
             }),
             timestamp_writes: None,
             occlusion_query_set: None,
@@ -794,7 +1007,10 @@ impl Renderer {
         // a. sky, then the geometry on the eye's side.
         pass.set_pipeline(&pipelines.sky);
         pass.draw(0..3, 0..1);
-        if let (Some(vertices), Some(indices)) = (buffer_of(&self.above_vertices), buffer_of(&self.above_indices)) {
+        if let (Some(vertices), Some(indices)) = (
+            buffer_of(&self.above_vertices),
+            buffer_of(&self.above_indices),
+        ) {
             if !draw.above_indices.is_empty() {
                 pass.set_pipeline(&pipelines.above);
                 pass.set_vertex_buffer(0, vertices);
@@ -802,8 +1018,13 @@ impl Renderer {
                 pass.draw_indexed(0..draw.above_indices.len() as u32, 0, 0..1);
             }
         }
-        let membrane = match (buffer_of(&self.membrane_vertices), buffer_of(&self.membrane_indices)) {
-            (Some(vertices), Some(indices)) if !draw.membrane_indices.is_empty() => Some((vertices, indices)),
+        let membrane = match (
+            buffer_of(&self.membrane_vertices),
+            buffer_of(&self.membrane_indices),
+        ) {
+            (Some(vertices), Some(indices)) if !draw.membrane_indices.is_empty() => {
+                Some((vertices, indices))
+            }
             _ => None,
         };
         let Some((membrane_vertices, membrane_indices)) = membrane else {
@@ -849,7 +1070,9 @@ fn read_back(device: &wgpu::Device, targets: &FrameTargets) -> Result<RenderedFr
         .map_err(|_| GpuError::Readback("the map callback never ran".to_string()))?
         .map_err(|error| GpuError::Readback(error.to_string()))?;
     let frame = {
-        let bytes = slice.get_mapped_range().map_err(|error| GpuError::Readback(error.to_string()))?;
+        let bytes = slice
+            .get_mapped_range()
+            .map_err(|error| GpuError::Readback(error.to_string()))?;
         unpack_frame(&bytes, targets)
     };
     targets.readback.unmap();
@@ -878,23 +1101,31 @@ fn unpack_frame(bytes: &[u8], targets: &FrameTargets) -> RenderedFrame {
     let [beauty_at, position_at, flags_at] = targets.readback_offsets.map(|offset| offset as usize);
     let half_floats = targets.beauty_bytes_per_pixel == 8;
     for y in 0..height {
-        let row = &bytes[beauty_at + y * beauty_pitch..][..width * targets.beauty_bytes_per_pixel as usize];
+        let row = &bytes[beauty_at + y * beauty_pitch..]
+            [..width * targets.beauty_bytes_per_pixel as usize];
         if half_floats {
             frame.beauty_rgba.extend(row.chunks_exact(8).map(|pixel| {
-                std::array::from_fn(|c| f16_bits_to_f32(u16::from_le_bytes([pixel[2 * c], pixel[2 * c + 1]])))
+                std::array::from_fn(|c| {
+                    f16_bits_to_f32(u16::from_le_bytes([pixel[2 * c], pixel[2 * c + 1]]))
+                })
             }));
         } else {
-            frame
-                .beauty_rgba
-                .extend(row.chunks_exact(16).map(|pixel| std::array::from_fn(|c| f32::from_bits(word(pixel, 4 * c)))));
+            frame.beauty_rgba.extend(
+                row.chunks_exact(16)
+                    .map(|pixel| std::array::from_fn(|c| f32::from_bits(word(pixel, 4 * c)))),
+            );
         }
         let row = &bytes[position_at + y * position_pitch..][..width * 16];
         for pixel in row.chunks_exact(16) {
-            frame.position.push(std::array::from_fn(|c| f32::from_bits(word(pixel, 4 * c))));
+            frame
+                .position
+                .push(std::array::from_fn(|c| f32::from_bits(word(pixel, 4 * c))));
             frame.distance_m.push(f32::from_bits(word(pixel, 12)));
         }
         let row = &bytes[flags_at + y * flags_pitch..][..width * 4];
-        frame.flags.extend(row.chunks_exact(4).map(|pixel| word(pixel, 0)));
+        frame
+            .flags
+            .extend(row.chunks_exact(4).map(|pixel| word(pixel, 0)));
     }
     frame
 }

@@ -32,11 +32,31 @@ impl ShaderModuleSource {
 
 /// (name, file, text) of every pass's module.
 const PASS_SOURCES: [(&str, &str, &str); 5] = [
-    ("sky", "shaders/sky.wgsl", include_str!("../../shaders/sky.wgsl")),
-    ("above", "shaders/above.wgsl", include_str!("../../shaders/above.wgsl")),
-    ("membrane", "shaders/membrane.wgsl", include_str!("../../shaders/membrane.wgsl")),
-    ("water_clear", "shaders/water_clear.wgsl", include_str!("../../shaders/water_clear.wgsl")),
-    ("under", "shaders/under.wgsl", include_str!("../../shaders/under.wgsl")),
+    (
+        "sky",
+        "shaders/sky.wgsl",
+        include_str!("../../shaders/sky.wgsl"),
+    ),
+    (
+        "above",
+        "shaders/above.wgsl",
+        include_str!("../../shaders/above.wgsl"),
+    ),
+    (
+        "membrane",
+        "shaders/membrane.wgsl",
+        include_str!("../../shaders/membrane.wgsl"),
+    ),
+    (
+        "water_clear",
+        "shaders/water_clear.wgsl",
+        include_str!("../../shaders/water_clear.wgsl"),
+    ),
+    (
+        "under",
+        "shaders/under.wgsl",
+        include_str!("../../shaders/under.wgsl"),
+    ),
 ];
 
 /// Every shader module the renderer creates, assembled as it creates them.
@@ -59,5 +79,7 @@ pub fn assembled_shaders() -> Vec<ShaderModuleSource> {
 
 /// The assembled module called `name`.
 pub(crate) fn assembled_shader(name: &str) -> Option<ShaderModuleSource> {
-    assembled_shaders().into_iter().find(|module| module.name == name)
+    assembled_shaders()
+        .into_iter()
+        .find(|module| module.name == name)
 }

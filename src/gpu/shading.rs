@@ -34,8 +34,8 @@ pub fn sky_radiance(direction: Vec3, lighting: &Lighting) -> Vec3 {
     let up = direction.y.clamp(0.0, 1.0);
     let toward_horizon = 1.0 - up;
     let horizon_weight = toward_horizon * toward_horizon * toward_horizon;
-    let mut radiance =
-        lighting.sky_zenith_linear * (1.0 - horizon_weight) + lighting.sky_horizon_linear * horizon_weight;
+    let mut radiance = lighting.sky_zenith_linear * (1.0 - horizon_weight)
+        + lighting.sky_horizon_linear * horizon_weight;
     if direction.dot(lighting.sun_direction) >= sun_disk_cos_radius(lighting) {
         radiance += lighting.sun_color_linear * sun_disk_gain(lighting);
     }
@@ -98,7 +98,9 @@ pub fn shade_under(
     let sun = match sun_direction_in_water(lighting, water) {
         Some(toward_sun) => {
             let sun_path_m = depth_m / toward_sun.y;
-            lighting.sun_color_linear * beer_lambert(sigma, sun_path_m) * normal.dot(toward_sun).max(0.0)
+            lighting.sun_color_linear
+                * beer_lambert(sigma, sun_path_m)
+                * normal.dot(toward_sun).max(0.0)
         }
         None => Vec3::ZERO,
     };
@@ -139,7 +141,10 @@ mod tests {
         assert_eq!(sky_radiance(Vec3::X, &light), light.sky_horizon_linear);
         assert_eq!(sky_radiance(-Vec3::Y, &light), light.sky_horizon_linear);
         let at_sun = sky_radiance(light.sun_direction, &light);
-        assert!(at_sun.x > 100.0 * light.sky_zenith_linear.x, "sun disk missing: {at_sun}");
+        assert!(
+            at_sun.x > 100.0 * light.sky_zenith_linear.x,
+            "sun disk missing: {at_sun}"
+        );
     }
 
     #[test]
@@ -187,11 +192,21 @@ mod tests {
             scatter_color_linear: Vec3::new(0.0, 0.05, 0.08),
             mean_level_m: 0.0,
         };
-        let deep = shade_under(Vec3::ONE, Vec3::Y, Vec3::new(0.0, -1.0, 0.0), 1e4, &light, &water);
+        let deep = shade_under(
+            Vec3::ONE,
+            Vec3::Y,
+            Vec3::new(0.0, -1.0, 0.0),
+            1e4,
+            &light,
+            &water,
+        );
         assert!((deep - water.scatter_color_linear).length() < 1e-6);
         let at_surface = shade_under(Vec3::ONE, Vec3::Y, Vec3::ZERO, 0.0, &light, &water);
         let toward_sun = sun_direction_in_water(&light, &water).unwrap();
         let expected = light.sun_color_linear * toward_sun.y + light.ambient_linear;
-        assert!((at_surface - expected).length() < 1e-5, "{at_surface} vs {expected}");
+        assert!(
+            (at_surface - expected).length() < 1e-5,
+            "{at_surface} vs {expected}"
+        );
     }
 }

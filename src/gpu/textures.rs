@@ -26,13 +26,22 @@ fn srgb_to_linear(encoded: u8) -> f32 {
 
 fn linear_to_srgb(linear: f32) -> u8 {
     let c = linear.clamp(0.0, 1.0);
-    let encoded = if c <= 0.0031308 { c * 12.92 } else { 1.055 * c.powf(1.0 / 2.4) - 0.055 };
+    let encoded = if c <= 0.0031308 {
+        c * 12.92
+    } else {
+        1.055 * c.powf(1.0 / 2.4) - 0.055
+    };
     (encoded * 255.0 + 0.5) as u8
 }
 
 /// Half-size image by a 2x2 box in linear light (alpha linear already). Odd sizes clamp the last
 /// row/column.
-fn downsample(pixels: &[u8], width: u32, height: u32, to_linear: &[f32; 256]) -> (Vec<u8>, u32, u32) {
+fn downsample(
+    pixels: &[u8],
+    width: u32,
+    height: u32,
+    to_linear: &[f32; 256],
+) -> (Vec<u8>, u32, u32) {
     let new_width = (width / 2).max(1);
     let new_height = (height / 2).max(1);
     let mut out = vec![0u8; (new_width * new_height * 4) as usize];
@@ -63,8 +72,9 @@ fn resized(texture: &Texture, width: u32, height: u32) -> Vec<u8> {
     if texture.width == width && texture.height == height {
         return texture.rgba8_srgb.clone();
     }
-    let image = image::RgbaImage::from_raw(texture.width, texture.height, texture.rgba8_srgb.clone())
-        .expect("size checked by validate_texture");
+    let image =
+        image::RgbaImage::from_raw(texture.width, texture.height, texture.rgba8_srgb.clone())
+            .expect("size checked by validate_texture");
     image::imageops::resize(&image, width, height, image::imageops::FilterType::Triangle).into_raw()
 }
 
@@ -88,24 +98,53 @@ pub(crate) fn upload_textures(
     queue: &wgpu::Queue,
     textures: &[Texture],
 ) -> Result<TextureArray, GpuError> {
-    let white = Texture { name: "white".to_string(), width: 1, height: 1, rgba8_srgb: vec![255; 4] };
-    let textures: &[Texture] = if textures.is_empty() { std::slice::from_ref(&white) } else { textures };
+    let white = Texture {
+        name: "white".to_string(),
+        width: 1,
+        height: 1,
+        rgba8_srgb: vec![255; 4],
+    };
+    let textures: &[Texture] = if textures.is_empty() {
+        std::slice::from_ref(&white)
+    } else {
+        textures
+    };
     for (index, texture) in textures.iter().enumerate() {
         validate_texture(index, texture)?;
     }
     let limits = device.limits();
-    if textures.len() > limits.max_texture_array_layers as usize {
-        return Err(GpuError::TooManyTextures { count: textures.len(), max: limits.max_texture_array_layers as usize });
+    if textures.len().max(2) > limits.max_texture_array_layers as usize {
+        return Err(GpuError::TooManyTextures {
+            count: textures.len(),
+            max: limits.max_texture_array_layers as usize,
+        });
     }
     let max_side = limits.max_texture_dimension_2d;
-    let width = textures.iter().map(|t| t.width).max().unwrap_or(1).min(max_side);
-    let height = textures.iter().map(|t| t.height).max().unwrap_or(1).min(max_side);
+    let width = textures
+        .iter()
+        .map(|t| t.width)
+        .max()
+        .unwrap_or(1)
+        .min(max_side);
+    let height = textures
+        .iter()
+        .map(|t| t.height)
+        .max()
+        .unwrap_or(1)
+        .min(max_side);
     let mip_level_count = 32 - width.max(height).leading_zeros();
     let layer_count = textures.len() as u32;
+    // wgpu's GL backend makes a one-layer texture a plain TEXTURE_2D, which a D2Array view then
+    // samples as black: allocate a spare layer so it is always a TEXTURE_2D_ARRAY.
+    let allocated_layers = layer_count.max(2);
 
     let gpu_texture = device.create_texture(&wgpu::TextureDescriptor {
         label: Some("scene textures"),
-        size: wgpu::Extent3d { width, height, depth_or_array_layers: layer_count },
+        size: wgpu::Extent3d {
+            width,
+            height,
+            depth_or_array_layers: allocated_layers,
+        },
         mip_level_count,
         sample_count: 1,
         dimension: wgpu::TextureDimension::D2,
@@ -123,7 +162,11 @@ pub(crate) fn upload_textures(
                 wgpu::TexelCopyTextureInfo {
                     texture: &gpu_texture,
                     mip_level,
-                    origin: wgpu::Origin3d { x: 0, y: 0, z: layer as u32 },
+                    origin: wgpu::Origin3d {
+                        x: 0,
+                        y: 0,
+                        z: layer as u32,
+                    },
                     aspect: wgpu::TextureAspect::All,
                 },
                 &pixels,
@@ -132,10 +175,15 @@ pub(crate) fn upload_textures(
                     bytes_per_row: Some(level_width * 4),
                     rows_per_image: Some(level_height),
                 },
-                wgpu::Extent3d { width: level_width, height: level_height, depth_or_array_layers: 1 },
+                wgpu::Extent3d {
+                    width: level_width,
+                    height: level_height,
+                    depth_or_array_layers: 1,
+                },
             );
             if mip_level + 1 < mip_level_count {
-                (pixels, level_width, level_height) = downsample(&pixels, level_width, level_height, &to_linear);
+                (pixels, level_width, level_height) =
+                    downsample(&pixels, level_width, level_height, &to_linear);
             }
         }
     }
@@ -175,7 +223,9 @@ mod tests {
     fn downsampling_averages_in_linear_light() {
         let to_linear: [f32; 256] = std::array::from_fn(|i| srgb_to_linear(i as u8));
         // Black and white checker: the linear mean is 0.5, which sRGB-encodes to 188, not 128.
-        let checker = [0, 0, 0, 255, 255, 255, 255, 255, 255, 255, 255, 255, 0, 0, 0, 255];
+        let checker = [
+            0, 0, 0, 255, 255, 255, 255, 255, 255, 255, 255, 255, 0, 0, 0, 255,
+        ];
         let (half, w, h) = downsample(&checker, 2, 2, &to_linear);
         assert_eq!((w, h), (1, 1));
         assert_eq!(half, vec![188, 188, 188, 255]);
