@@ -23,7 +23,12 @@ impl Camera {
     /// Right-handed perspective with depth in [0, 1] and y up in NDC: wgpu's clip space, which is
     /// glam's "directx" convention.
     pub fn clip_from_view(&self, aspect: f32) -> Mat4 {
-        glam::camera::rh::proj::directx::perspective(self.fov_y_deg.to_radians(), aspect, NEAR_M, FAR_M)
+        glam::camera::rh::proj::directx::perspective(
+            self.fov_y_deg.to_radians(),
+            aspect,
+            NEAR_M,
+            FAR_M,
+        )
     }
 
     pub fn clip_from_world(&self, width: u32, height: u32) -> Mat4 {
@@ -62,7 +67,12 @@ mod tests {
 
     #[test]
     fn pixel_and_ray_are_inverse() {
-        let cam = Camera { eye: Vec3::new(1.0, 3.0, 8.0), target: Vec3::new(0.0, -1.0, 0.0), up: Vec3::Y, fov_y_deg: 50.0 };
+        let cam = Camera {
+            eye: Vec3::new(1.0, 3.0, 8.0),
+            target: Vec3::new(0.0, -1.0, 0.0),
+            up: Vec3::Y,
+            fov_y_deg: 50.0,
+        };
         let p = Vec3::new(0.7, -0.5, 1.2);
         let px = cam.pixel_of(p, 640, 360).unwrap();
         let dir = cam.ray_through_pixel(px, 640, 360);

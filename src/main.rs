@@ -73,9 +73,19 @@ fn main() -> ExitCode {
     env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("error")).init();
     let cli = Cli::parse();
     let result = match cli.command {
-        Command::Render { scene, frames, out, size, png } => render(&scene, frames.as_deref(), out, &size, png),
+        Command::Render {
+            scene,
+            frames,
+            out,
+            size,
+            png,
+        } => render(&scene, frames.as_deref(), out, &size, png),
         Command::Info { scene } => info(&scene),
-        Command::Bench { json, scene, frames } => bench(json, &scene, frames),
+        Command::Bench {
+            json,
+            scene,
+            frames,
+        } => bench(json, &scene, frames),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -90,7 +100,13 @@ fn main() -> ExitCode {
     }
 }
 
-fn render(scene_path: &Path, frames: Option<&str>, out: Option<PathBuf>, size: &str, png: bool) -> Result<(), SnellError> {
+fn render(
+    scene_path: &Path,
+    frames: Option<&str>,
+    out: Option<PathBuf>,
+    size: &str,
+    png: bool,
+) -> Result<(), SnellError> {
     let (width, height) = frame::parse_size(size)?;
     let job = RenderJob::prepare(scene_path)?;
     let range = match frames {
@@ -118,7 +134,10 @@ fn info(scene_path: &Path) -> Result<(), SnellError> {
 fn bench(json: bool, scene_path: &Path, frames: u32) -> Result<(), SnellError> {
     let figures = snell::frame::bench::run(scene_path, frames)?;
     if json {
-        println!("{}", serde_json::to_string_pretty(&figures).expect("figures serialise"));
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&figures).expect("figures serialise")
+        );
     } else {
         print!("{}", figures.to_text());
     }

@@ -30,7 +30,9 @@ fn outputs_under(dir: &Path) -> Vec<PathBuf> {
             let path = entry.path();
             if path.is_dir() {
                 stack.push(path);
-            } else if path.extension().is_none_or(|e| e != "toml") && path.file_name().is_some_and(|n| n != "blocker") {
+            } else if path.extension().is_none_or(|e| e != "toml")
+                && path.file_name().is_some_and(|n| n != "blocker")
+            {
                 found.push(path);
             }
         }
@@ -43,14 +45,38 @@ fn expect_bad_input(scene_text: &str, needles: &[&str]) {
     let dir = tempfile::tempdir().unwrap();
     let scene = write_scene(dir.path(), "bad.toml", scene_text);
     let out = dir.path().join("out");
-    let output = snell(&["render", scene.to_str().unwrap(), "--out", out.to_str().unwrap(), "--size", "64x36"], dir.path());
+    let output = snell(
+        &[
+            "render",
+            scene.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--size",
+            "64x36",
+        ],
+        dir.path(),
+    );
     let stderr = String::from_utf8_lossy(&output.stderr);
-    assert_eq!(output.status.code(), Some(2), "exit code for bad input; stderr:\n{stderr}");
+    assert_eq!(
+        output.status.code(),
+        Some(2),
+        "exit code for bad input; stderr:\n{stderr}"
+    );
     for needle in needles {
-        assert!(stderr.contains(needle), "stderr should contain {needle:?}:\n{stderr}");
+        assert!(
+            stderr.contains(needle),
+            "stderr should contain {needle:?}:\n{stderr}"
+        );
     }
-    assert!(!stderr.contains("panicked"), "a panic is not an error message:\n{stderr}");
-    assert!(outputs_under(dir.path()).is_empty(), "bad input left files: {:?}", outputs_under(dir.path()));
+    assert!(
+        !stderr.contains("panicked"),
+        "a panic is not an error message:\n{stderr}"
+    );
+    assert!(
+        outputs_under(dir.path()).is_empty(),
+        "bad input left files: {:?}",
+        outputs_under(dir.path())
+    );
 }
 
 fn replace_once(text: &str, from: &str, to: &str) -> String {
@@ -75,13 +101,21 @@ fn unknown_key_is_named() {
 #[test]
 fn zero_resolution_is_refused() {
     let text = replace_once(TINY, "resolution = [16, 16]", "resolution = [0, 16]");
-    let line = text.lines().position(|l| l.contains("resolution = [0, 16]")).unwrap() + 1;
+    let line = text
+        .lines()
+        .position(|l| l.contains("resolution = [0, 16]"))
+        .unwrap()
+        + 1;
     expect_bad_input(&text, &["bad.toml", &format!(":{line}:"), "resolution"]);
 }
 
 #[test]
 fn non_positive_index_of_refraction_is_refused() {
-    let text = replace_once(TINY, "resolution = [16, 16]", "resolution = [16, 16]\nn_below = -1.333");
+    let text = replace_once(
+        TINY,
+        "resolution = [16, 16]",
+        "resolution = [16, 16]\nn_below = -1.333",
+    );
     let line = text.lines().position(|l| l.starts_with("n_below")).unwrap() + 1;
     expect_bad_input(&text, &["bad.toml", &format!(":{line}:"), "n_below"]);
 }
@@ -89,7 +123,11 @@ fn non_positive_index_of_refraction_is_refused() {
 #[test]
 fn nan_is_refused() {
     let text = replace_once(TINY, "amplitude_m = 0.02", "amplitude_m = nan");
-    let line = text.lines().position(|l| l.contains("amplitude_m = nan")).unwrap() + 1;
+    let line = text
+        .lines()
+        .position(|l| l.contains("amplitude_m = nan"))
+        .unwrap()
+        + 1;
     expect_bad_input(&text, &["bad.toml", &format!(":{line}:"), "amplitude_m"]);
 }
 
@@ -109,11 +147,28 @@ fn output_path_through_a_regular_file_is_refused() {
     let scene = write_scene(dir.path(), "tiny.toml", TINY);
     std::fs::write(dir.path().join("blocker"), "a regular file").unwrap();
     let out = dir.path().join("blocker").join("frames");
-    let output = snell(&["render", scene.to_str().unwrap(), "--out", out.to_str().unwrap(), "--size", "64x36"], dir.path());
+    let output = snell(
+        &[
+            "render",
+            scene.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--size",
+            "64x36",
+        ],
+        dir.path(),
+    );
     let stderr = String::from_utf8_lossy(&output.stderr);
     assert_eq!(output.status.code(), Some(2), "stderr:\n{stderr}");
-    assert!(stderr.contains("blocker"), "the error names the path:\n{stderr}");
-    assert!(outputs_under(dir.path()).is_empty(), "left files: {:?}", outputs_under(dir.path()));
+    assert!(
+        stderr.contains("blocker"),
+        "the error names the path:\n{stderr}"
+    );
+    assert!(
+        outputs_under(dir.path()).is_empty(),
+        "left files: {:?}",
+        outputs_under(dir.path())
+    );
 }
 
 #[test]
@@ -124,7 +179,12 @@ fn bad_arguments_exit_2() {
         let mut all = vec!["render", scene.to_str().unwrap()];
         all.extend(args);
         let output = snell(&all, dir.path());
-        assert_eq!(output.status.code(), Some(2), "{args:?}: {}", String::from_utf8_lossy(&output.stderr));
+        assert_eq!(
+            output.status.code(),
+            Some(2),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&output.stderr)
+        );
     }
     let missing = snell(&["render", "no-such-scene.toml"], dir.path());
     assert_eq!(missing.status.code(), Some(2));
@@ -137,10 +197,23 @@ fn render_writes_frames_and_report() {
     let scene = write_scene(dir.path(), "tiny.toml", TINY);
     let out = dir.path().join("frames");
     let output = snell(
-        &["render", scene.to_str().unwrap(), "--out", out.to_str().unwrap(), "--size", "64x36", "--frames", "2-3"],
+        &[
+            "render",
+            scene.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--size",
+            "64x36",
+            "--frames",
+            "2-3",
+        ],
         dir.path(),
     );
-    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
     let mut names: Vec<String> = std::fs::read_dir(&out)
         .unwrap()
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
@@ -148,12 +221,18 @@ fn render_writes_frames_and_report() {
     names.sort();
     assert_eq!(names, ["report.jsonl", "tiny.0002.exr", "tiny.0003.exr"]);
     let report = std::fs::read_to_string(out.join("report.jsonl")).unwrap();
-    let rows: Vec<serde_json::Value> = report.lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    let rows: Vec<serde_json::Value> = report
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
     assert_eq!(rows.len(), 2);
     assert_eq!(rows[0]["frame"], 2);
     assert_eq!(rows[1]["frame"], 3);
     for row in &rows {
-        assert!(row["convergence_policy"].as_str().unwrap().contains("optical path"));
+        assert!(row["convergence_policy"]
+            .as_str()
+            .unwrap()
+            .contains("optical path"));
         assert!(row["counts"].is_object());
         assert!(row["stage_secs"]["refraction"].as_f64().unwrap() >= 0.0);
     }
@@ -167,9 +246,16 @@ fn info_describes_the_scene() {
     let dir = tempfile::tempdir().unwrap();
     let scene = write_scene(dir.path(), "tiny.toml", TINY);
     let output = snell(&["info", scene.to_str().unwrap()], dir.path());
-    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
     let stdout = String::from_utf8_lossy(&output.stdout);
     for needle in ["frames 1-3", "16x16 cells", "adapter"] {
-        assert!(stdout.contains(needle), "info should mention {needle:?}:\n{stdout}");
+        assert!(
+            stdout.contains(needle),
+            "info should mention {needle:?}:\n{stdout}"
+        );
     }
 }

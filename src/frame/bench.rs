@@ -55,7 +55,10 @@ impl BenchFigures {
         for (stage, ms) in &self.frame.median_stage_ms {
             text.push_str(&format!("  {stage:<12} {ms:8.2} ms\n"));
         }
-        text.push_str(&format!("  refraction + render (readback included): {:.2} ms\n", self.frame.refraction_plus_render_ms));
+        text.push_str(&format!(
+            "  refraction + render (readback included): {:.2} ms\n",
+            self.frame.refraction_plus_render_ms
+        ));
         text
     }
 }
@@ -84,7 +87,9 @@ pub fn run(scene_path: &Path, frames: u32) -> Result<BenchFigures, SnellError> {
     let mut renderer = Renderer::new()?;
     job.upload_textures(&mut renderer)?;
     let timeline = *job.timeline();
-    let frames = frames.max(1).min(timeline.last_frame - timeline.first_frame + 1);
+    let frames = frames
+        .max(1)
+        .min(timeline.last_frame - timeline.first_frame + 1);
     let mut per_stage: BTreeMap<String, Vec<f64>> = BTreeMap::new();
     let mut totals = Vec::new();
     let mut previous = None;
@@ -98,11 +103,19 @@ pub fn run(scene_path: &Path, frames: u32) -> Result<BenchFigures, SnellError> {
                 per_stage.entry(stage.clone()).or_default().push(secs * 1e3);
             }
             // Water membrane build counted in: it is per-frame CPU work the refraction needs.
-            totals.push((refracted.stage_secs["water"] + refracted.stage_secs["refraction"] + refracted.stage_secs["render"]) * 1e3);
+            totals.push(
+                (refracted.stage_secs["water"]
+                    + refracted.stage_secs["refraction"]
+                    + refracted.stage_secs["render"])
+                    * 1e3,
+            );
         }
         previous = Some(refracted.tracking);
     }
-    let median_stage_ms = per_stage.into_iter().map(|(k, mut v)| (k, median(&mut v))).collect();
+    let median_stage_ms = per_stage
+        .into_iter()
+        .map(|(k, mut v)| (k, median(&mut v)))
+        .collect();
     Ok(BenchFigures {
         refraction,
         frame: FrameFigures {

@@ -9,16 +9,17 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-
 use crate::camera::Camera;
 use crate::draw::{DrawMaterial, FrameDraw, FrameView, MembraneVertex, RenderedFrame};
 use crate::gpu::{GpuError, Renderer};
 use crate::mesh::{Object, Texture};
 use crate::output::OutputError;
+use crate::refraction::flags::TrackingState as VertexTracking;
 use crate::refraction::flags::{FlagCounts, CONVERGENCE_POLICY};
 use crate::refraction::search::{CellMode, RefractionField, RefractionSetup};
-use crate::refraction::flags::TrackingState as VertexTracking;
-use crate::refraction::virtual_geometry::{build_virtual_geometry, ImageSearch, VirtualGeometryRequest};
+use crate::refraction::virtual_geometry::{
+    build_virtual_geometry, ImageSearch, VirtualGeometryRequest,
+};
 use crate::scene::{Scene, SceneError};
 use crate::timeline::{CameraTrack, Timeline};
 use crate::water::{build_membrane, HeightField, Membrane, Wave, WaveField};
@@ -37,7 +38,11 @@ pub enum SnellError {
     Argument(String),
     /// The scene is valid as a file but a frame cannot be rendered from it.
     #[error("{scene}: frame {frame}: {problem}")]
-    Frame { scene: PathBuf, frame: u32, problem: String },
+    Frame {
+        scene: PathBuf,
+        frame: u32,
+        problem: String,
+    },
 }
 
 impl SnellError {
@@ -76,7 +81,10 @@ pub struct FrameRange {
 
 impl FrameRange {
     pub fn whole(timeline: &Timeline) -> Self {
-        FrameRange { first: timeline.first_frame, last: timeline.last_frame }
+        FrameRange {
+            first: timeline.first_frame,
+            last: timeline.last_frame,
+        }
     }
 
     /// `"A-B"` or `"N"`, checked against the timeline.
@@ -155,7 +163,14 @@ impl RenderJob {
             .flat_map(|o| o.mesh.positions.iter().map(|p| p.y))
             .fold(top, f32::min)
             - 1e-3;
-        Ok(RenderJob { scene, objects, textures, waves, camera_track, query_y_range: (bottom, top) })
+        Ok(RenderJob {
+            scene,
+            objects,
+            textures,
+            waves,
+            camera_track,
+            query_y_range: (bottom, top),
+        })
     }
 
     pub fn scene_name(&self) -> &str {
@@ -167,7 +182,8 @@ impl RenderJob {
     }
 
     pub fn camera_at(&self, frame: u32) -> Camera {
-        self.camera_track.sample(self.scene.timeline.time_secs(frame))
+        self.camera_track
+            .sample(self.scene.timeline.time_secs(frame))
     }
 
     /// CPU stages of a frame: water, membrane, refraction, virtual geometry, flags. `previous` is the
@@ -228,10 +244,17 @@ impl RenderJob {
             materials: self
                 .objects
                 .iter()
-                .map(|o| DrawMaterial { texture: o.material.texture, tint_linear: o.material.tint_linear })
+                .map(|o| DrawMaterial {
+                    texture: o.material.texture,
+                    tint_linear: o.material.tint_linear,
+                })
                 .collect(),
         };
-        let view = FrameView { camera, lighting: self.scene.lighting(), water: self.scene.water_optics() };
+        let view = FrameView {
+            camera,
+            lighting: self.scene.lighting(),
+            water: self.scene.water_optics(),
+        };
         Ok(RefractedFrame {
             frame,
             time_secs,
@@ -247,7 +270,12 @@ impl RenderJob {
     /// The tracking state popping compares against for `frame`: frame - 1 recomputed (CPU only),
     /// or nothing at the start of the timeline. A frame rendered alone is thus judged exactly as
     /// in a sequence.
-    pub fn previous_tracking(&self, frame: u32, width: u32, height: u32) -> Result<Option<VertexTracking>, SnellError> {
+    pub fn previous_tracking(
+        &self,
+        frame: u32,
+        width: u32,
+        height: u32,
+    ) -> Result<Option<VertexTracking>, SnellError> {
         if frame <= self.scene.timeline.first_frame {
             return Ok(None);
         }
@@ -264,7 +292,9 @@ impl RenderJob {
     ) -> Result<RenderedFrame, SnellError> {
         let clock = Instant::now();
         let rendered = renderer.render(&refracted.draw, &refracted.view, width, height)?;
-        refracted.stage_secs.insert("render".to_string(), clock.elapsed().as_secs_f64());
+        refracted
+            .stage_secs
+            .insert("render".to_string(), clock.elapsed().as_secs_f64());
         Ok(rendered)
     }
 
@@ -316,14 +346,19 @@ impl RenderJob {
                 let png = crate::output::tonemap::tonemap_srgb8(&rendered, 0.0);
                 crate::output::tonemap::save_png_atomic(&path.with_extension("png"), &png)?;
             }
-            refracted.stage_secs.insert("write".to_string(), clock.elapsed().as_secs_f64());
+            refracted
+                .stage_secs
+                .insert("write".to_string(), clock.elapsed().as_secs_f64());
             report.append(&self.frame_report(&refracted, width, height))?;
             previous = Some(refracted.tracking);
             bar.inc(1);
         }
         bar.finish_and_clear();
         let secs = started.elapsed().as_secs_f64();
-        Ok(RenderSummary { frames: range.len(), secs_per_frame: secs / range.len() as f64 })
+        Ok(RenderSummary {
+            frames: range.len(),
+            secs_per_frame: secs / range.len() as f64,
+        })
     }
 
     pub fn frame_meta(&self, refracted: &RefractedFrame) -> crate::output::exr::FrameMeta {
@@ -335,13 +370,24 @@ impl RenderJob {
             method: "virtual-vertices/equal-t".to_string(),
             version: crate::VERSION.to_string(),
             extra: vec![
-                ("snell.convergencePolicy".to_string(), CONVERGENCE_POLICY.to_string()),
-                ("snell.scene".to_string(), self.scene.path.display().to_string()),
+                (
+                    "snell.convergencePolicy".to_string(),
+                    CONVERGENCE_POLICY.to_string(),
+                ),
+                (
+                    "snell.scene".to_string(),
+                    self.scene.path.display().to_string(),
+                ),
             ],
         }
     }
 
-    pub fn frame_report(&self, refracted: &RefractedFrame, width: u32, height: u32) -> crate::output::report::FrameReport {
+    pub fn frame_report(
+        &self,
+        refracted: &RefractedFrame,
+        width: u32,
+        height: u32,
+    ) -> crate::output::report::FrameReport {
         crate::output::report::FrameReport {
             frame: refracted.frame,
             time_secs: refracted.time_secs,
@@ -370,7 +416,13 @@ impl RenderJob {
             scene.timeline.fps,
             scene.timeline.time_secs(scene.timeline.last_frame)
         );
-        let _ = writeln!(text, "objects    {} ({} vertices, {} triangles)", self.objects.len(), vertices, triangles);
+        let _ = writeln!(
+            text,
+            "objects    {} ({} vertices, {} triangles)",
+            self.objects.len(),
+            vertices,
+            triangles
+        );
         for object in &self.objects {
             let _ = writeln!(
                 text,
@@ -417,7 +469,10 @@ fn membrane_vertices(membrane: &Membrane) -> Vec<MembraneVertex> {
         .positions
         .iter()
         .zip(&membrane.normals)
-        .map(|(p, n)| MembraneVertex { position: p.to_array(), normal: n.to_array() })
+        .map(|(p, n)| MembraneVertex {
+            position: p.to_array(),
+            normal: n.to_array(),
+        })
         .collect()
 }
 
@@ -427,9 +482,10 @@ fn progress_bar(len: u64, visible: bool) -> indicatif::ProgressBar {
     }
     let bar = indicatif::ProgressBar::new(len);
     bar.set_style(
-        indicatif::ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} {msg} (ETA {eta})")
-            .expect("valid template"),
+        indicatif::ProgressStyle::with_template(
+            "{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} {msg} (ETA {eta})",
+        )
+        .expect("valid template"),
     );
     bar
 }
-

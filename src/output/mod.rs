@@ -40,7 +40,10 @@ impl OutputError {
     /// that cannot be created, or an existing report that is not snell's. Failures while writing
     /// (a full disk, an I/O error) are not.
     pub fn is_bad_input(&self) -> bool {
-        matches!(self, OutputError::CreateDir { .. } | OutputError::Parse { .. })
+        matches!(
+            self,
+            OutputError::CreateDir { .. } | OutputError::Parse { .. }
+        )
     }
 }
 
