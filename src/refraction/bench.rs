@@ -214,11 +214,8 @@ fn query_all(field: &RefractionField, points: &[Vec3], accelerated: bool) -> (us
         .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1))
 }
 
-/// Runs both scenarios (`repetitions` times each, median) and checks that the accelerated and
-/// brute-force answers agree on the thesis-scale run.
-pub fn bench_search_with(repetitions: usize) -> SearchBenchFigures {
-    let repetitions = repetitions.max(1);
-    // --- Pool scenario.
+/// The pool scenario: surface, membrane, query vertices, setup.
+fn pool_scenario() -> (WaveSum, Membrane, Vec<Vec3>, RefractionSetup) {
     let pool_surface = waves(&[
         (0.05, 4.5, 10.0, 0.0),
         (0.03, 2.7, 70.0, 1.3),
@@ -241,6 +238,14 @@ pub fn bench_search_with(repetitions: usize) -> SearchBenchFigures {
         n_below: 1.333,
         cell_mode: CellMode::EqualT,
     };
+    (pool_surface, pool_membrane, pool_points, pool_setup)
+}
+
+/// Runs both scenarios (`repetitions` times each, median) and checks that the accelerated and
+/// brute-force answers agree on the thesis-scale run.
+pub fn bench_search_with(repetitions: usize) -> SearchBenchFigures {
+    let repetitions = repetitions.max(1);
+    let (pool_surface, pool_membrane, pool_points, pool_setup) = pool_scenario();
     let (mut frame, mut build) = (Vec::new(), Vec::new());
     let mut pool_counts = (0, 0);
     for _ in 0..repetitions {
@@ -352,5 +357,40 @@ mod tests {
         assert_eq!(figures.thesis_mismatched_vertices, 0);
         assert_eq!(figures.pool_vertices, 100_000);
         assert!(figures.pool_images > 50_000, "most pool vertices are seen");
+    }
+
+    #[test]
+    #[ignore = "tuning aid"]
+    fn pool_search_work() {
+        let figures_setup = pool_scenario();
+        let (surface, membrane, points, setup) = &figures_setup;
+        let start = Instant::now();
+        let field = RefractionField::build(membrane, surface, *setup, (-2.0, 0.0));
+        println!(
+            "build {:?} size {:?}",
+            start.elapsed(),
+            field.structure_size()
+        );
+        let mut sums = [0usize; 5];
+        for p in points.iter().step_by(10) {
+            let w = field.search_work(*p);
+            for i in 0..5 {
+                sums[i] += w[i];
+            }
+        }
+        println!("work per 10k queries {sums:?}");
+        let start = Instant::now();
+        let mut out = Vec::new();
+        let mut n = 0;
+        for _ in 0..10 {
+            for p in points.iter().step_by(10) {
+                field.images(*p, &mut out);
+                n += out.len();
+            }
+        }
+        println!(
+            "10 x 10k queries single thread {:?}, {n} images",
+            start.elapsed()
+        );
     }
 }

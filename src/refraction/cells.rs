@@ -119,9 +119,13 @@ fn quadratic_roots(a: f64, b: f64, c: f64) -> ([f64; 2], usize) {
 }
 
 /// A root of the cubic in `[low, high]` where it changes sign (safeguarded Newton with bisection).
-fn bracketed_root(c: &[f64; 4], mut low: f64, mut high: f64) -> f64 {
-    let mut f_low = eval_cubic(c, low);
-    let mut t = 0.5 * (low + high);
+fn bracketed_root(c: &[f64; 4], mut low: f64, mut high: f64, mut f_low: f64, f_high: f64) -> f64 {
+    // Start at the secant point: for the nearly linear determinants of ordinary cells Newton then
+    // converges in a couple of steps.
+    let mut t = low + (high - low) * (f_low / (f_low - f_high));
+    if !(t > low && t < high) {
+        t = 0.5 * (low + high);
+    }
     for _ in 0..100 {
         let f = eval_cubic(c, t);
         if f == 0.0 {
@@ -140,7 +144,8 @@ fn bracketed_root(c: &[f64; 4], mut low: f64, mut high: f64) -> f64 {
         } else {
             0.5 * (low + high)
         };
-        if (next - t).abs() <= 1e-15 * (1.0 + t.abs()) || high - low <= 1e-15 * (1.0 + high.abs()) {
+        // 1e-14 relative in t is far below anything f32 outputs can show, and reachable in f64.
+        if (next - t).abs() <= 1e-14 * (1.0 + t.abs()) || high - low <= 1e-14 * (1.0 + high.abs()) {
             return next;
         }
         t = next;
@@ -193,7 +198,7 @@ fn cubic_roots_in(c: &[f64; 4], low: f64, high: f64, roots: &mut [f64; 3]) -> us
             push(a, &mut count);
         }
         if fa != 0.0 && fb != 0.0 && (fa < 0.0) != (fb < 0.0) {
-            push(bracketed_root(c, a, b), &mut count);
+            push(bracketed_root(c, a, b, fa, fb), &mut count);
         }
         if w == n_knots - 2 && fb == 0.0 {
             push(b, &mut count);

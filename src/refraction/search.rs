@@ -14,9 +14,10 @@
 //! `F_i(y) = A_i + y B_i` with `B_i = T.xz / T.y`, `A_i = P.xz - P.y B_i`: linear in y. A point of an
 //! equal-t cell at height y is `sum b_j Q_j(t)` with `Q_j(t)` on ray j at height `y_j(t)`, so its
 //! horizontal position is `sum b_j F_j(y) + sum b_j (y_j(t) - y) B_j`: inside the footprint triangle
-//! `F_0 F_1 F_2 (y)` grown by `Delta * max|B|`, where `Delta` bounds how far the rays' heights at one t
-//! differ from y (the facet's height span plus the spread of the `T.y`, times the largest t that can
-//! reach height y). Membrane facets are grouped in blocks of `BLOCK_CELLS x BLOCK_CELLS` grid cells;
+//! `F_0 F_1 F_2 (y)` grown by `Delta * max|B_j - B|` for any common B (the `y_j(t) - y` average to
+//! zero with the weights `b_j`), where `Delta` bounds how far the rays' heights at one t differ from
+//! y (the facet's height span plus the spread of the `T.y`, times the largest t that can reach
+//! height y). Membrane facets are grouped in blocks of `BLOCK_CELLS x BLOCK_CELLS` grid cells;
 //! each block keeps boxes of its `A` and `B` and the `Delta` ingredients. `query_y_range` is cut in
 //! depth slabs; per slab a uniform 2-D grid (CSR, counting sort, slabs built in parallel) lists the
 //! blocks whose footprint over the slab can cover each bin. A query visits one bin, re-tests each
@@ -105,6 +106,8 @@ struct BlockBound {
     b_max: Vec2,
     /// Largest |B| (L1 norm, >= Euclidean) over the block's rays.
     b_len_max: f32,
+    /// Largest |B - centre of the B box| (L1 norm) over the block's rays.
+    b_deviation_max: f32,
     /// Largest height span of one facet.
     facet_height_span: f32,
     /// Largest spread of T.y within one facet.
@@ -125,6 +128,7 @@ impl BlockBound {
             b_min: Vec2::splat(f32::INFINITY),
             b_max: Vec2::splat(f32::NEG_INFINITY),
             b_len_max: 0.0,
+            b_deviation_max: 0.0,
             facet_height_span: 0.0,
             facet_descent_spread: 0.0,
             top_y: f32::NEG_INFINITY,
@@ -134,14 +138,17 @@ impl BlockBound {
     }
 
     /// How far the rays' heights at one ray parameter may differ from a point's height `y` in any of
-    /// the block's cells, grown by `max|B|`: the radius by which footprint triangles must grow.
+    /// the block's cells (`Delta`), times how far the rays' `B` may differ from a common `B`: the
+    /// radius by which footprint triangles must grow. (The common part drops out: with
+    /// `delta_j = y_j(t) - y`, `sum b_j delta_j = 0`, so `sum b_j delta_j B_j = sum b_j delta_j (B_j - B)`
+    /// for any fixed B; the block's B-box centre is used.)
     fn growth_radius(&self, y: f32) -> f32 {
         let eps = CONTAINMENT_EPS as f32;
         let reach_m = (self.top_y - y + 6.0 * eps * self.facet_height_span).max(0.0);
         let t_max = reach_m / (self.min_descent - 6.0 * eps * self.facet_descent_spread);
         let delta =
             (self.facet_height_span + self.facet_descent_spread * t_max) * (1.0 + 8.0 * eps);
-        delta * self.b_len_max * (1.0 + 8.0 * eps)
+        delta * self.b_deviation_max * (1.0 + 8.0 * eps)
     }
 
     /// Conservative horizontal box of every cell point of the block with height in `[y_low, y_high]`.
@@ -206,6 +213,12 @@ pub struct RefractionField<'a> {
     crest_tolerance_m: f64,
     surface_y_min: f64,
     surface_y_max: f64,
+    /// Crest check prefilter: (min, max) vertex height over the 3 x 3 tiles (of `BLOCK_CELLS`
+    /// grid cells) around each tile, row-major.
+    tile_heights: Vec<[f32; 2]>,
+    tiles_x: usize,
+    tiles_z: usize,
+    tile_size_m: [f64; 2],
 }
 
 impl<'a> RefractionField<'a> {
@@ -283,6 +296,7 @@ impl<'a> RefractionField<'a> {
             .max(query_low.abs())
             .max(query_high.abs());
 
+        let (tile_heights, tiles_x, tiles_z, tile_size_m) = tile_height_ranges(membrane);
         let mut field = Self {
             membrane,
             surface,
@@ -298,6 +312,10 @@ impl<'a> RefractionField<'a> {
             slab_thickness_m: 1.0,
             slabs: Vec::new(),
             footprint_slack: 0.0,
+            tile_heights,
+            tiles_x,
+            tiles_z,
+            tile_size_m,
             spacing_m,
             crest_tolerance_m,
             surface_y_min: if surface_y_min.is_finite() {
@@ -401,6 +419,12 @@ impl<'a> RefractionField<'a> {
                     bound.facet_height_span = bound.facet_height_span.max(y_hi - y_lo);
                     bound.facet_descent_spread = bound.facet_descent_spread.max(d_hi - d_lo);
                 }
+                let centre = (bound.b_min + bound.b_max) * 0.5;
+                let half = (bound.b_max - bound.b_min) * 0.5;
+                // Every B in the box is within the half-diagonal of the centre; pad the rounding of
+                // the centre itself.
+                bound.b_deviation_max = (half.x + half.y) * (1.0 + 1e-5)
+                    + 4.0 * f32::EPSILON * (centre.x.abs() + centre.y.abs());
                 // f32 rounding of A, B, F = A + yB and the box arithmetic: a few ulps of the largest
                 // magnitude involved, generously.
                 let magnitude = coordinate_scale * (1.0 + bound.b_len_max);
@@ -430,8 +454,9 @@ impl<'a> RefractionField<'a> {
             .block_bounds
             .iter()
             .fold(0.0_f32, |m, b| m.max(b.b_len_max));
-        // A slab lets a block's footprint slide by thickness * |B|: keep that near half a block.
-        let ideal_thickness = 0.5 * block_m / b_len_max.max(1e-3);
+        // A slab lets a block's footprint slide by thickness * |B|: keep that near one block (more
+        // slabs cost more build than they save in queries at 100k points per frame).
+        let ideal_thickness = block_m / b_len_max.max(1e-3);
         let depth = (y_high - y_low).max(1e-6);
         let slab_count = ((depth / ideal_thickness).ceil() as usize).clamp(1, MAX_SLABS);
         let thickness = depth / slab_count as f32;
@@ -454,7 +479,8 @@ impl<'a> RefractionField<'a> {
                         }
                     })
                     .collect();
-                bin_blocks(&boxes, block_m)
+                // Bins of two blocks: half the entries of one-block bins at the same query speed (measured).
+                bin_blocks(&boxes, 2.0 * block_m)
             })
             .collect();
         self.slab_y_low = y_low;
@@ -506,6 +532,57 @@ impl<'a> RefractionField<'a> {
         }
         out.sort_unstable_by(|a, b| a.facet.cmp(&b.facet).then(a.t.total_cmp(&b.t)));
         self.merge_and_check_crests(point64, out);
+    }
+
+    /// Size of the search structure: (slabs, bins, block entries, blocks). For tuning.
+    pub fn structure_size(&self) -> [usize; 4] {
+        [
+            self.slabs.len(),
+            self.slabs.iter().map(|s| s.bins_x * s.bins_z).sum(),
+            self.slabs.iter().map(|s| s.blocks.len()).sum(),
+            self.block_bounds.len(),
+        ]
+    }
+
+    /// Work counters of one accelerated query: (blocks in the bin, blocks passing their box,
+    /// facets tested by footprint, facets passing it, unbounded facets). For tuning.
+    pub fn search_work(&self, point: Vec3) -> [usize; 5] {
+        let mut work = [0, 0, 0, 0, self.unbounded_facets.len()];
+        if self.slabs.is_empty() {
+            return work;
+        }
+        let slab_f = (point.y - self.slab_y_low) / self.slab_thickness_m;
+        if !(slab_f >= 0.0 && slab_f <= self.slabs.len() as f32) {
+            return work;
+        }
+        let slab = &self.slabs[(slab_f as usize).min(self.slabs.len() - 1)];
+        let v = Vec2::new(point.x, point.z);
+        let bx = ((v.x - slab.origin.x) * slab.inverse_bin_m).floor();
+        let bz = ((v.y - slab.origin.y) * slab.inverse_bin_m).floor();
+        if bx >= 0.0 && bz >= 0.0 && (bx as usize) < slab.bins_x && (bz as usize) < slab.bins_z {
+            let bin = bz as usize * slab.bins_x + bx as usize;
+            let entries =
+                &slab.blocks[slab.bin_starts[bin] as usize..slab.bin_starts[bin + 1] as usize];
+            work[0] = entries.len();
+            for &block in entries {
+                let bound = &self.block_bounds[block as usize];
+                let (lo, hi) = bound.box_between(point.y, point.y);
+                if v.x < lo.x || v.y < lo.y || v.x > hi.x || v.y > hi.y {
+                    continue;
+                }
+                work[1] += 1;
+                let radius = bound.growth_radius(point.y) + self.footprint_slack;
+                let facets = &self.block_facets[self.block_starts[block as usize] as usize
+                    ..self.block_starts[block as usize + 1] as usize];
+                for &facet in facets {
+                    work[2] += 1;
+                    if self.footprint_may_contain(facet, v, point.y, radius) {
+                        work[3] += 1;
+                    }
+                }
+            }
+        }
+        work
     }
 
     /// The same answer as [`Self::images`], by testing every cell: the test oracle.
@@ -619,8 +696,27 @@ impl<'a> RefractionField<'a> {
         } else {
             1.0
         };
-        let under = |x: DVec3| x.y < self.surface.height(x.x, x.z) - tolerance;
-        if self.segment_hits(sight_point, to_eye, eye_end, under) {
+        // The exact height is costly (a sum of waves): a tile whose vertices are all below the
+        // sample cannot put the surface above it. The exact surface exceeds the facets by at most
+        // the faceting gap, which the tolerance (twice the sampled gap) already absorbs.
+        // The exact height is costly (a sum of waves): where the sample is above every membrane
+        // vertex of the 3 x 3 tiles around it, the surface cannot be above it here or anywhere
+        // within a tile ahead (the segment only rises toward the eye), so the walk skips a tile.
+        // The exact surface exceeds the facets by at most the faceting gap, which the tolerance
+        // (twice the sampled gap) already absorbs.
+        let under = |x: DVec3| {
+            if let Some([_, high]) = self.tile_height_range(x.x, x.z) {
+                if x.y >= high as f64 {
+                    return Probe::ClearAhead;
+                }
+            }
+            if x.y < self.surface.height(x.x, x.z) - tolerance {
+                Probe::Hit
+            } else {
+                Probe::Clear
+            }
+        };
+        if self.segment_hits(sight_point, to_eye, eye_end, to_eye.y >= 0.0, under) {
             return true;
         }
         let to_point = point - sight_point;
@@ -629,17 +725,44 @@ impl<'a> RefractionField<'a> {
         } else {
             1.0
         };
-        let over = |x: DVec3| x.y > self.surface.height(x.x, x.z) + tolerance;
-        self.segment_hits(sight_point, to_point, point_end, over)
+        let over = |x: DVec3| {
+            if let Some([low, _]) = self.tile_height_range(x.x, x.z) {
+                if x.y <= low as f64 {
+                    return Probe::ClearAhead;
+                }
+            }
+            if x.y > self.surface.height(x.x, x.z) + tolerance {
+                Probe::Hit
+            } else {
+                Probe::Clear
+            }
+        };
+        self.segment_hits(sight_point, to_point, point_end, to_point.y <= 0.0, over)
     }
 
-    /// Samples `start + s * direction` for s in (guard, end] and reports whether `hit` holds anywhere.
+    /// (min, max) vertex height of the membrane's 3 x 3 tiles around (x, z); None outside it.
+    #[inline]
+    fn tile_height_range(&self, x: f64, z: f64) -> Option<[f32; 2]> {
+        let grid = self.membrane.grid;
+        let tx = (x - grid.min_x) / self.tile_size_m[0];
+        let tz = (z - grid.min_z) / self.tile_size_m[1];
+        if tx >= 0.0 && tz >= 0.0 && (tx as usize) < self.tiles_x && (tz as usize) < self.tiles_z {
+            Some(self.tile_heights[tz as usize * self.tiles_x + tx as usize])
+        } else {
+            None
+        }
+    }
+
+    /// Walks `start + s * direction` for s in (guard, end] every `CREST_SAMPLE_STEP_PER_SPACING`
+    /// spacings (a tile at a time where `probe` says so and `can_skip`: the segment's height moves
+    /// away from the surface bound along it) and reports whether `probe` hits anywhere.
     fn segment_hits(
         &self,
         start: DVec3,
         direction: DVec3,
         end: f64,
-        hit: impl Fn(DVec3) -> bool,
+        can_skip: bool,
+        probe: impl Fn(DVec3) -> Probe,
     ) -> bool {
         let horizontal_m = (direction.x * direction.x + direction.z * direction.z).sqrt() * end;
         let guard_m = CREST_GUARD_PER_SPACING * self.spacing_m;
@@ -647,12 +770,80 @@ impl<'a> RefractionField<'a> {
             return false;
         }
         let step_m = CREST_SAMPLE_STEP_PER_SPACING * self.spacing_m;
-        let steps = ((horizontal_m - guard_m) / step_m).ceil().max(1.0) as usize;
-        (0..=steps).any(|k| {
-            let along_m = guard_m + (horizontal_m - guard_m) * k as f64 / steps as f64;
-            hit(start + direction * (end * along_m / horizontal_m))
-        })
+        let skip_m = self.tile_size_m[0].min(self.tile_size_m[1]).max(step_m);
+        let mut along_m = guard_m;
+        loop {
+            let at_m = along_m.min(horizontal_m);
+            let advance_m = match probe(start + direction * (end * at_m / horizontal_m)) {
+                Probe::Hit => return true,
+                Probe::ClearAhead if can_skip => skip_m,
+                _ => step_m,
+            };
+            if at_m >= horizontal_m || (advance_m == skip_m && at_m + skip_m >= horizontal_m) {
+                return false;
+            }
+            along_m = at_m + advance_m;
+        }
     }
+}
+
+/// One sample of the crest walk.
+enum Probe {
+    /// The path crosses the surface here.
+    Hit,
+    /// Not here.
+    Clear,
+    /// Not here, nor within a tile ahead if the path moves away from the surface.
+    ClearAhead,
+}
+
+/// (min, max) vertex height over the 3 x 3 tiles around each tile of `BLOCK_CELLS x BLOCK_CELLS`
+/// grid cells (vertices on the borders included), with the tile grid's size; empty when the membrane is not the grid its
+/// `grid` describes (the crest check then evaluates every sample exactly).
+#[allow(clippy::type_complexity)]
+fn tile_height_ranges(membrane: &Membrane) -> (Vec<[f32; 2]>, usize, usize, [f64; 2]) {
+    let grid = membrane.grid;
+    let (cx, cz) = (grid.cells_x as usize, grid.cells_z as usize);
+    if cx == 0 || cz == 0 || membrane.positions.len() != (cx + 1) * (cz + 1) {
+        return (Vec::new(), 0, 0, [1.0, 1.0]);
+    }
+    let (tiles_x, tiles_z) = (cx.div_ceil(BLOCK_CELLS), cz.div_ceil(BLOCK_CELLS));
+    let tile_size_m = [
+        (grid.max_x - grid.min_x) / cx as f64 * BLOCK_CELLS as f64,
+        (grid.max_z - grid.min_z) / cz as f64 * BLOCK_CELLS as f64,
+    ];
+    let heights = (0..tiles_x * tiles_z)
+        .into_par_iter()
+        .with_min_len(1024)
+        .map(|tile| {
+            let (tx, tz) = (tile % tiles_x, tile / tiles_x);
+            let mut range = [f32::INFINITY, f32::NEG_INFINITY];
+            for iz in tz * BLOCK_CELLS..=((tz + 1) * BLOCK_CELLS).min(cz) {
+                for ix in tx * BLOCK_CELLS..=((tx + 1) * BLOCK_CELLS).min(cx) {
+                    let y = membrane.positions[iz * (cx + 1) + ix].y;
+                    range = [range[0].min(y), range[1].max(y)];
+                }
+            }
+            range
+        })
+        .collect::<Vec<[f32; 2]>>();
+    // Dilate to the 3 x 3 neighbourhood: a bound valid a whole tile around any point of the tile.
+    let dilated = (0..tiles_x * tiles_z)
+        .into_par_iter()
+        .with_min_len(1024)
+        .map(|tile| {
+            let (tx, tz) = (tile % tiles_x, tile / tiles_x);
+            let mut range = [f32::INFINITY, f32::NEG_INFINITY];
+            for nz in tz.saturating_sub(1)..=(tz + 1).min(tiles_z - 1) {
+                for nx in tx.saturating_sub(1)..=(tx + 1).min(tiles_x - 1) {
+                    let r = heights[nz * tiles_x + nx];
+                    range = [range[0].min(r[0]), range[1].max(r[1])];
+                }
+            }
+            range
+        })
+        .collect();
+    (dilated, tiles_x, tiles_z, tile_size_m)
 }
 
 /// Bins block boxes into a uniform grid of `bin_m` bins (CSR by counting sort).
@@ -685,10 +876,11 @@ fn bin_blocks(boxes: &[(Vec2, Vec2)], bin_m: f32) -> Slab {
     let bins_x = ((extent.x * inverse_bin_m).floor() as usize + 1).max(1);
     let bins_z = ((extent.y * inverse_bin_m).floor() as usize + 1).max(1);
     let range = |l: Vec2, h: Vec2| {
-        let x0 = (((l.x - lo.x) * inverse_bin_m).floor().max(0.0) as usize).min(bins_x - 1);
-        let z0 = (((l.y - lo.y) * inverse_bin_m).floor().max(0.0) as usize).min(bins_z - 1);
-        let x1 = (((h.x - lo.x) * inverse_bin_m).floor().max(0.0) as usize).min(bins_x - 1);
-        let z1 = (((h.y - lo.y) * inverse_bin_m).floor().max(0.0) as usize).min(bins_z - 1);
+        // Offsets from `lo` are >= 0, so truncation is floor (and `as` saturates negatives to 0).
+        let x0 = (((l.x - lo.x) * inverse_bin_m) as usize).min(bins_x - 1);
+        let z0 = (((l.y - lo.y) * inverse_bin_m) as usize).min(bins_z - 1);
+        let x1 = (((h.x - lo.x) * inverse_bin_m) as usize).min(bins_x - 1);
+        let z1 = (((h.y - lo.y) * inverse_bin_m) as usize).min(bins_z - 1);
         (x0, z0, x1, z1)
     };
     let mut starts = vec![0u32; bins_x * bins_z + 1];
