@@ -70,7 +70,13 @@ enum Command {
 }
 
 fn main() -> ExitCode {
-    env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("error")).init();
+    // wgpu probes EGL before falling back to the surfaceless platform and logs that probe as an
+    // error; it is harmless (ENVIRONMENT.md), so it is hidden unless RUST_LOG asks for it.
+    env_logger::Builder::from_env(
+        env_logger::Env::default().default_filter_or("error,wgpu_hal::gles::egl=off"),
+    )
+    .init();
+    quiet_vulkan_runtime_dir();
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Render {
@@ -97,6 +103,25 @@ fn main() -> ExitCode {
                 ExitCode::from(1)
             }
         }
+    }
+}
+
+/// Mesa's Vulkan driver prints an error on every start when XDG_RUNTIME_DIR is unset (as on CI and
+/// in containers). Give it a private directory instead, as a desktop session would.
+fn quiet_vulkan_runtime_dir() {
+    let usable = std::env::var_os("XDG_RUNTIME_DIR").is_some_and(|dir| Path::new(&dir).is_dir());
+    if usable {
+        return;
+    }
+    let dir = std::env::temp_dir().join("snell-xdg-runtime");
+    if std::fs::create_dir_all(&dir).is_ok() {
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            let _ = std::fs::set_permissions(&dir, std::fs::Permissions::from_mode(0o700));
+        }
+        // Single-threaded here: nothing else reads the environment yet.
+        std::env::set_var("XDG_RUNTIME_DIR", &dir);
     }
 }
 

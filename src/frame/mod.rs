@@ -331,29 +331,61 @@ impl RenderJob {
         crate::output::ensure_output_dir(out_dir)?;
         let mut renderer = Renderer::new()?;
         self.upload_textures(&mut renderer)?;
-        let mut report = crate::output::report::ReportWriter::create(out_dir)?;
+        let report = crate::output::report::ReportWriter::create(out_dir)?;
         let bar = progress_bar(range.len() as u64, progress);
         let started = Instant::now();
         let mut previous = self.previous_tracking(range.first, width, height)?;
-        for frame in range.frames() {
-            bar.set_message(format!("frame {frame}"));
-            let mut refracted = self.refract(frame, width, height, previous.as_ref())?;
-            let rendered = self.render_refracted(&mut renderer, &mut refracted, width, height)?;
-            let clock = Instant::now();
-            let path = crate::output::exr::frame_path(out_dir, &self.scene.name, frame);
-            crate::output::exr::write_frame_exr(&path, &rendered, &self.frame_meta(&refracted))?;
-            if write_png {
-                let png = crate::output::tonemap::tonemap_srgb8(&rendered, 0.0);
-                crate::output::tonemap::save_png_atomic(&path.with_extension("png"), &png)?;
+        // Frames are encoded and written on a second thread while the next one is refracted and
+        // rendered (EXR compression costs about as much as the rest of a frame). The channel holds
+        // one frame, so memory stays bounded; the report row of a frame is appended only after its
+        // EXR is safely renamed into place.
+        let (sender, receiver) = std::sync::mpsc::sync_channel::<FrameToWrite>(1);
+        let written = std::thread::scope(|scope| {
+            let writer = scope.spawn(move || write_frames(receiver, report, write_png));
+            let mut render_error = None;
+            for frame in range.frames() {
+                bar.set_message(format!("frame {frame}"));
+                let result = self
+                    .refract(frame, width, height, previous.as_ref())
+                    .and_then(|mut refracted| {
+                        let rendered =
+                            self.render_refracted(&mut renderer, &mut refracted, width, height)?;
+                        Ok((refracted, rendered))
+                    });
+                let (refracted, rendered) = match result {
+                    Ok(done) => done,
+                    Err(error) => {
+                        render_error = Some(error);
+                        break;
+                    }
+                };
+                let job = FrameToWrite {
+                    path: crate::output::exr::frame_path(
+                        out_dir,
+                        &self.scene.name,
+                        refracted.frame,
+                    ),
+                    meta: self.frame_meta(&refracted),
+                    report: self.frame_report(&refracted, width, height),
+                    rendered,
+                };
+                previous = Some(refracted.tracking);
+                if sender.send(job).is_err() {
+                    break; // the writer stopped on an error: it is returned below
+                }
+                bar.inc(1);
             }
-            refracted
-                .stage_secs
-                .insert("write".to_string(), clock.elapsed().as_secs_f64());
-            report.append(&self.frame_report(&refracted, width, height))?;
-            previous = Some(refracted.tracking);
-            bar.inc(1);
-        }
+            drop(sender);
+            let written = writer
+                .join()
+                .expect("the frame writer thread does not panic");
+            match render_error {
+                Some(error) => Err(error),
+                None => written,
+            }
+        });
         bar.finish_and_clear();
+        written?;
         let secs = started.elapsed().as_secs_f64();
         Ok(RenderSummary {
             frames: range.len(),
@@ -454,6 +486,36 @@ impl RenderJob {
 }
 
 /// The scene file's wave (direction in degrees) as the water stage's wave (unit direction).
+/// A rendered frame on its way to disk.
+struct FrameToWrite {
+    path: PathBuf,
+    rendered: RenderedFrame,
+    meta: crate::output::exr::FrameMeta,
+    report: crate::output::report::FrameReport,
+}
+
+/// The writer thread of [`RenderJob::render_to_dir`]: EXR (atomic), optional PNG, then the report row
+/// with the write time filled in. Stops at the first error.
+fn write_frames(
+    receiver: std::sync::mpsc::Receiver<FrameToWrite>,
+    mut report: crate::output::report::ReportWriter,
+    write_png: bool,
+) -> Result<(), SnellError> {
+    for mut job in receiver {
+        let clock = Instant::now();
+        crate::output::exr::write_frame_exr(&job.path, &job.rendered, &job.meta)?;
+        if write_png {
+            let png = crate::output::tonemap::tonemap_srgb8(&job.rendered, 0.0);
+            crate::output::tonemap::save_png_atomic(&job.path.with_extension("png"), &png)?;
+        }
+        job.report
+            .stage_secs
+            .insert("write".to_string(), clock.elapsed().as_secs_f64());
+        report.append(&job.report)?;
+    }
+    Ok(())
+}
+
 fn wave_from_spec(spec: &crate::scene::WaveSpec) -> Wave {
     Wave {
         amplitude_m: spec.amplitude_m,
