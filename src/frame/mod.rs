@@ -403,11 +403,11 @@ impl RenderJob {
             version: crate::VERSION.to_string(),
             extra: vec![
                 (
-                    "snell.convergencePolicy".to_string(),
+                    "convergencePolicy".to_string(),
                     CONVERGENCE_POLICY.to_string(),
                 ),
                 (
-                    "snell.scene".to_string(),
+                    "scene".to_string(),
                     self.scene.path.display().to_string(),
                 ),
             ],
