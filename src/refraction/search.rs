@@ -200,6 +200,9 @@ pub struct RefractionField<'a> {
     /// Regular facets per block (CSR, ascending facet index).
     block_starts: Vec<u32>,
     block_facets: Vec<u32>,
+    /// The three footprint lines of each entry of `block_facets`, stored alongside so the hot
+    /// loop reads one contiguous run per block instead of chasing triangle and vertex indices.
+    block_facet_footprints: Vec<[Footprint; 3]>,
     block_bounds: Vec<BlockBound>,
     /// Facets with a ray that gets no footprint bound: always tested.
     unbounded_facets: Vec<u32>,
@@ -306,6 +309,7 @@ impl<'a> RefractionField<'a> {
             footprints,
             block_starts: Vec::new(),
             block_facets: Vec::new(),
+            block_facet_footprints: Vec::new(),
             block_bounds: Vec::new(),
             unbounded_facets: Vec::new(),
             slab_y_low: 0.0,
@@ -434,6 +438,11 @@ impl<'a> RefractionField<'a> {
             .collect();
         let b_len_global = bounds.iter().fold(0.0_f32, |m, b| m.max(b.b_len_max));
         self.footprint_slack = 64.0 * f32::EPSILON * coordinate_scale * (1.0 + b_len_global);
+        self.block_facet_footprints = facets
+            .par_iter()
+            .with_min_len(4096)
+            .map(|&facet| triangles[facet as usize].map(|i| footprints[i as usize]))
+            .collect();
         self.block_starts = starts;
         self.block_facets = facets;
         self.block_bounds = bounds;
@@ -518,10 +527,13 @@ impl<'a> RefractionField<'a> {
                     continue;
                 }
                 let radius = bound.growth_radius(point.y) + self.footprint_slack;
-                let facets = &self.block_facets[self.block_starts[block as usize] as usize
-                    ..self.block_starts[block as usize + 1] as usize];
-                for &facet in facets {
-                    if self.footprint_may_contain(facet, v, point.y, radius) {
+                let run = self.block_starts[block as usize] as usize
+                    ..self.block_starts[block as usize + 1] as usize;
+                for (&facet, lines) in self.block_facets[run.clone()]
+                    .iter()
+                    .zip(&self.block_facet_footprints[run])
+                {
+                    if footprint_may_contain(lines, v, point.y, radius) {
                         self.push_containments(facet, point64, out);
                     }
                 }
@@ -572,11 +584,11 @@ impl<'a> RefractionField<'a> {
                 }
                 work[1] += 1;
                 let radius = bound.growth_radius(point.y) + self.footprint_slack;
-                let facets = &self.block_facets[self.block_starts[block as usize] as usize
-                    ..self.block_starts[block as usize + 1] as usize];
-                for &facet in facets {
+                let run = self.block_starts[block as usize] as usize
+                    ..self.block_starts[block as usize + 1] as usize;
+                for lines in &self.block_facet_footprints[run] {
                     work[2] += 1;
-                    if self.footprint_may_contain(facet, v, point.y, radius) {
+                    if footprint_may_contain(lines, v, point.y, radius) {
                         work[3] += 1;
                     }
                 }
@@ -600,31 +612,6 @@ impl<'a> RefractionField<'a> {
         let tri = self.membrane.triangles[facet as usize];
         let r = tri.map(|i| self.rays[i as usize]);
         Cell::new(r.map(|r| r.origin), r.map(|r| r.direction))
-    }
-
-    /// Can the facet's cell contain a point at height `y` with horizontal position `v`? Never
-    /// false for a point the exact test accepts (see the module docs for the bound).
-    #[inline]
-    fn footprint_may_contain(&self, facet: u32, v: Vec2, y: f32, radius: f32) -> bool {
-        let tri = self.membrane.triangles[facet as usize];
-        let f = tri.map(|i| {
-            let fp = self.footprints[i as usize];
-            fp.a + y * fp.b
-        });
-        let twice_area = (f[1] - f[0]).perp_dot(f[2] - f[0]);
-        let sign = if twice_area >= 0.0 { 1.0 } else { -1.0 };
-        let area_slack = CONTAINMENT_EPS as f32 * 1.01 * twice_area.abs();
-        for k in 0..3 {
-            let (from, to) = (f[(k + 1) % 3], f[(k + 2) % 3]);
-            let edge = to - from;
-            let side = sign * edge.perp_dot(v - from);
-            // An L1 edge length bounds the Euclidean one from above: conservative.
-            let margin = area_slack + (edge.x.abs() + edge.y.abs()) * radius;
-            if side < -margin {
-                return false;
-            }
-        }
-        true
     }
 
     fn push_containments(&self, facet: u32, point: DVec3, out: &mut Vec<Image>) {
@@ -785,6 +772,28 @@ impl<'a> RefractionField<'a> {
             along_m = at_m + advance_m;
         }
     }
+}
+
+/// Can the cell with the footprint lines `lines` (of its facet's three vertices) contain a point at
+/// height `y` with horizontal position `v`? Never false for a point the exact test accepts (see
+/// the module docs for the bound).
+#[inline]
+fn footprint_may_contain(lines: &[Footprint; 3], v: Vec2, y: f32, radius: f32) -> bool {
+    let f = lines.map(|fp| fp.a + y * fp.b);
+    let twice_area = (f[1] - f[0]).perp_dot(f[2] - f[0]);
+    let sign = if twice_area >= 0.0 { 1.0 } else { -1.0 };
+    let area_slack = CONTAINMENT_EPS as f32 * 1.01 * twice_area.abs();
+    for k in 0..3 {
+        let (from, to) = (f[(k + 1) % 3], f[(k + 2) % 3]);
+        let edge = to - from;
+        let side = sign * edge.perp_dot(v - from);
+        // An L1 edge length bounds the Euclidean one from above: conservative.
+        let margin = area_slack + (edge.x.abs() + edge.y.abs()) * radius;
+        if side < -margin {
+            return false;
+        }
+    }
+    true
 }
 
 /// One sample of the crest walk.
