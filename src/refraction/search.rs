@@ -222,6 +222,8 @@ pub struct RefractionField<'a> {
     tiles_x: usize,
     tiles_z: usize,
     tile_size_m: [f64; 2],
+    /// The height the crest check compares against (see [`CrestHeights`]).
+    crest_heights: CrestHeights,
 }
 
 impl<'a> RefractionField<'a> {
@@ -290,7 +292,8 @@ impl<'a> RefractionField<'a> {
             .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
                 (lo.min(p.y as f64), hi.max(p.y as f64))
             });
-        let crest_tolerance_m = faceting_tolerance(membrane, surface);
+        let crest_heights = CrestHeights::new(membrane);
+        let crest_tolerance_m = faceting_tolerance(membrane, surface, &crest_heights);
         let (query_low, query_high) = query_y_range.unwrap_or((0.0, 0.0));
         let coordinate_scale = membrane
             .positions
@@ -322,6 +325,7 @@ impl<'a> RefractionField<'a> {
             tile_size_m,
             spacing_m,
             crest_tolerance_m,
+            crest_heights,
             surface_y_min: if surface_y_min.is_finite() {
                 surface_y_min
             } else {
@@ -668,10 +672,13 @@ impl<'a> RefractionField<'a> {
         images.retain(|image| !self.crest_blocks(image.sight_point.as_dvec3(), point));
     }
 
-    /// Is the path eye -> sight point -> point blocked by the exact surface (ALGORITHM §6)? The
+    /// Is the path eye -> sight point -> point blocked by the surface (ALGORITHM §6)? The
     /// segment from the eye must stay above the surface and the one to the point below it, except
     /// within `CREST_GUARD_PER_SPACING` spacings of the sight point, with a tolerance of the
-    /// faceting error (`crest_tolerance_m`). Sampled every `CREST_SAMPLE_STEP_PER_SPACING`
+    /// faceting error (`crest_tolerance_m`). The surface is the membrane's vertex heights
+    /// interpolated bilinearly ([`CrestHeights`]; the exact surface outside a grid membrane): a
+    /// sample costs four loads instead of an evaluation of the height field, and the tolerance
+    /// covers both this interpolation's and the facets' distance from the exact surface. Sampled every `CREST_SAMPLE_STEP_PER_SPACING`
     /// spacings, only on the parts of the segments inside the surface's height range.
     pub fn crest_blocks(&self, sight_point: DVec3, point: DVec3) -> bool {
         let eye = self.setup.eye.as_dvec3();
@@ -683,21 +690,16 @@ impl<'a> RefractionField<'a> {
         } else {
             1.0
         };
-        // The exact height is costly (a sum of waves): a tile whose vertices are all below the
-        // sample cannot put the surface above it. The exact surface exceeds the facets by at most
-        // the faceting gap, which the tolerance (twice the sampled gap) already absorbs.
-        // The exact height is costly (a sum of waves): where the sample is above every membrane
-        // vertex of the 3 x 3 tiles around it, the surface cannot be above it here or anywhere
-        // within a tile ahead (the segment only rises toward the eye), so the walk skips a tile.
-        // The exact surface exceeds the facets by at most the faceting gap, which the tolerance
-        // (twice the sampled gap) already absorbs.
+        // Where the sample is above every membrane vertex of the 3 x 3 tiles around it, the
+        // interpolated surface (within its cell's vertex heights) cannot be above it here or
+        // anywhere within a tile ahead (the segment only rises toward the eye): skip a tile.
         let under = |x: DVec3| {
             if let Some([_, high]) = self.tile_height_range(x.x, x.z) {
                 if x.y >= high as f64 {
                     return Probe::ClearAhead;
                 }
             }
-            if x.y < self.surface.height(x.x, x.z) - tolerance {
+            if x.y < self.crest_height(x.x, x.z) - tolerance {
                 Probe::Hit
             } else {
                 Probe::Clear
@@ -718,13 +720,22 @@ impl<'a> RefractionField<'a> {
                     return Probe::ClearAhead;
                 }
             }
-            if x.y > self.surface.height(x.x, x.z) + tolerance {
+            if x.y > self.crest_height(x.x, x.z) + tolerance {
                 Probe::Hit
             } else {
                 Probe::Clear
             }
         };
         self.segment_hits(sight_point, to_point, point_end, to_point.y <= 0.0, over)
+    }
+
+    /// The surface height the crest check uses at (x, z): the membrane vertices' bilinear
+    /// interpolation inside a grid membrane, the exact surface elsewhere.
+    #[inline]
+    fn crest_height(&self, x: f64, z: f64) -> f64 {
+        self.crest_heights
+            .height(x, z)
+            .unwrap_or_else(|| self.surface.height(x, z))
     }
 
     /// (min, max) vertex height of the membrane's 3 x 3 tiles around (x, z); None outside it.
@@ -855,6 +866,77 @@ fn tile_height_ranges(membrane: &Membrane) -> (Vec<[f32; 2]>, usize, usize, [f64
     (dilated, tiles_x, tiles_z, tile_size_m)
 }
 
+/// The membrane's vertex heights on its grid, interpolated bilinearly: the surface of the crest
+/// check. Empty (every query None) when the membrane is not the row-major vertex grid its `grid`
+/// describes.
+#[derive(Debug)]
+struct CrestHeights {
+    heights: Vec<f64>,
+    cells: [usize; 2],
+    origin_m: [f64; 2],
+    inverse_cell_m: [f64; 2],
+}
+
+impl CrestHeights {
+    fn new(membrane: &Membrane) -> Self {
+        let grid = membrane.grid;
+        let (cx, cz) = (grid.cells_x as usize, grid.cells_z as usize);
+        let cell_m = [
+            (grid.max_x - grid.min_x) / cx.max(1) as f64,
+            (grid.max_z - grid.min_z) / cz.max(1) as f64,
+        ];
+        let empty = Self {
+            heights: Vec::new(),
+            cells: [0, 0],
+            origin_m: [0.0, 0.0],
+            inverse_cell_m: [1.0, 1.0],
+        };
+        if cx == 0
+            || cz == 0
+            || membrane.positions.len() != (cx + 1) * (cz + 1)
+            || !(cell_m[0] > 0.0 && cell_m[1] > 0.0)
+        {
+            return empty;
+        }
+        // Interpolating between grid points is only the membrane if the vertices sit on them.
+        let on_grid = membrane.positions.par_iter().enumerate().all(|(i, p)| {
+            let (ix, iz) = (i % (cx + 1), i / (cx + 1));
+            let x = grid.min_x + cell_m[0] * ix as f64;
+            let z = grid.min_z + cell_m[1] * iz as f64;
+            (p.x as f64 - x).abs() <= 1e-3 * cell_m[0] && (p.z as f64 - z).abs() <= 1e-3 * cell_m[1]
+        });
+        if !on_grid {
+            return empty;
+        }
+        Self {
+            heights: membrane.positions.iter().map(|p| p.y as f64).collect(),
+            cells: [cx, cz],
+            origin_m: [grid.min_x, grid.min_z],
+            inverse_cell_m: [1.0 / cell_m[0], 1.0 / cell_m[1]],
+        }
+    }
+
+    /// Bilinear height at (x, z); None outside the grid (or without one).
+    #[inline]
+    fn height(&self, x: f64, z: f64) -> Option<f64> {
+        let fx = (x - self.origin_m[0]) * self.inverse_cell_m[0];
+        let fz = (z - self.origin_m[1]) * self.inverse_cell_m[1];
+        let [cx, cz] = self.cells;
+        if !(fx >= 0.0 && fz >= 0.0 && fx <= cx as f64 && fz <= cz as f64)
+            || self.heights.is_empty()
+        {
+            return None;
+        }
+        let (ix, iz) = ((fx as usize).min(cx - 1), (fz as usize).min(cz - 1));
+        let (u, w) = (fx - ix as f64, fz - iz as f64);
+        let row = iz * (cx + 1) + ix;
+        let h = &self.heights;
+        let near = h[row] + u * (h[row + 1] - h[row]);
+        let far = h[row + cx + 1] + u * (h[row + cx + 2] - h[row + cx + 1]);
+        Some(near + w * (far - near))
+    }
+}
+
 /// Bins block boxes into a uniform grid of `bin_m` bins (CSR by counting sort).
 fn bin_blocks(boxes: &[(Vec2, Vec2)], bin_m: f32) -> Slab {
     let (mut lo, mut hi) = (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY));
@@ -930,10 +1012,16 @@ fn bin_blocks(boxes: &[(Vec2, Vec2)], bin_m: f32) -> Slab {
     }
 }
 
-/// Twice the largest gap between the faceted membrane and the exact surface, sampled at facet
-/// centroids and edge midpoints of at most ~2,000 facets (evenly strided), plus rounding: the
-/// height tolerance of the crest check.
-fn faceting_tolerance(membrane: &Membrane, surface: &dyn HeightField) -> f64 {
+/// Twice the largest gap between the faceted membrane (or the crest check's interpolated heights)
+/// and the exact surface, sampled at facet centroids and edge midpoints of at most ~2,000 facets
+/// (evenly strided), plus rounding: the height tolerance of the crest check. Twice, so that it
+/// also covers the distance between the facets (where sight points lie) and the interpolated
+/// heights (the check's surface): both are within the gap of the exact surface.
+fn faceting_tolerance(
+    membrane: &Membrane,
+    surface: &dyn HeightField,
+    crest_heights: &CrestHeights,
+) -> f64 {
     let n = membrane.triangles.len();
     if n == 0 {
         return 0.0;
@@ -953,7 +1041,12 @@ fn faceting_tolerance(membrane: &Membrane, surface: &dyn HeightField) -> f64 {
             ];
             samples
                 .iter()
-                .map(|s| (s.y - surface.height(s.x, s.z)).abs())
+                .map(|s| {
+                    let exact = surface.height(s.x, s.z);
+                    // The crest check's interpolated height must be as close to the exact one.
+                    let interpolated = crest_heights.height(s.x, s.z).unwrap_or(exact);
+                    (s.y - exact).abs().max((interpolated - exact).abs())
+                })
                 .fold(0.0, f64::max)
         })
         .reduce(|| 0.0, f64::max);
