@@ -87,6 +87,8 @@ pub const CREST_GUARD_PER_SPACING: f64 = 0.5;
 const BLOCK_CELLS: usize = 2;
 /// Rays descending less steeply than this (`T.y > -MIN_DESCENT`) get no footprint bound.
 const MIN_DESCENT: f32 = 0.05;
+/// How many blocks a block's footprint may slide across one depth slab.
+const SLAB_SLIDE_BLOCKS: f32 = 4.0;
 /// At most this many depth slabs.
 const MAX_SLABS: usize = 96;
 
@@ -467,9 +469,11 @@ impl<'a> RefractionField<'a> {
             .block_bounds
             .iter()
             .fold(0.0_f32, |m, b| m.max(b.b_len_max));
-        // A slab lets a block's footprint slide by thickness * |B|: keep that near one block (more
-        // slabs cost more build than they save in queries at 100k points per frame).
-        let ideal_thickness = block_m / b_len_max.max(1e-3);
+        // A slab lets a block's footprint slide by thickness * |B|: a few blocks. A query re-tests
+        // each listed block's box at its own height (exact, cheap), so thick slabs only add cheap
+        // box tests, while each slab costs a pass over every block in the build (measured on the
+        // pool: 35 -> 9 slabs cut the entries 2.1 M -> 0.8 M for 12 -> 17 box tests per query).
+        let ideal_thickness = SLAB_SLIDE_BLOCKS * block_m / b_len_max.max(1e-3);
         let depth = (y_high - y_low).max(1e-6);
         let slab_count = ((depth / ideal_thickness).ceil() as usize).clamp(1, MAX_SLABS);
         let thickness = depth / slab_count as f32;
