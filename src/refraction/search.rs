@@ -153,6 +153,21 @@ impl BlockBound {
         delta * self.b_deviation_max * (1.0 + 8.0 * eps)
     }
 
+    /// [`Self::box_between`]`(y, y)` with the duplicate products dropped: the same values (min and
+    /// max over the same set), fewer operations on the query path.
+    #[inline(always)]
+    fn box_at(&self, y: f32) -> (Vec2, Vec2) {
+        let (p, q) = (self.b_min * y, self.b_max * y);
+        let mut lo = self.a_min + Vec2::splat(f32::INFINITY).min(p).min(q);
+        let mut hi = self.a_max + Vec2::splat(f32::NEG_INFINITY).max(p).max(q);
+        let extent = (hi - lo).max(Vec2::ZERO);
+        let pad = Vec2::splat(self.growth_radius(y) + self.slack)
+            + extent * (4.0 * CONTAINMENT_EPS as f32);
+        lo -= pad;
+        hi += pad;
+        (lo, hi)
+    }
+
     /// Conservative horizontal box of every cell point of the block with height in `[y_low, y_high]`.
     fn box_between(&self, y_low: f32, y_high: f32) -> (Vec2, Vec2) {
         let products = [
@@ -530,7 +545,7 @@ impl<'a> RefractionField<'a> {
                 &slab.blocks[slab.bin_starts[bin] as usize..slab.bin_starts[bin + 1] as usize];
             for &block in entries {
                 let bound = &self.block_bounds[block as usize];
-                let (lo, hi) = bound.box_between(point.y, point.y);
+                let (lo, hi) = bound.box_at(point.y);
                 if v.x < lo.x || v.y < lo.y || v.x > hi.x || v.y > hi.y {
                     continue;
                 }
@@ -586,7 +601,7 @@ impl<'a> RefractionField<'a> {
             work[0] = entries.len();
             for &block in entries {
                 let bound = &self.block_bounds[block as usize];
-                let (lo, hi) = bound.box_between(point.y, point.y);
+                let (lo, hi) = bound.box_at(point.y);
                 if v.x < lo.x || v.y < lo.y || v.x > hi.x || v.y > hi.y {
                     continue;
                 }
@@ -616,6 +631,7 @@ impl<'a> RefractionField<'a> {
     }
 
     /// The cell of one facet.
+    #[inline]
     pub fn cell(&self, facet: u32) -> Cell {
         let tri = self.membrane.triangles[facet as usize];
         let r = tri.map(|i| self.rays[i as usize]);
@@ -792,7 +808,7 @@ impl<'a> RefractionField<'a> {
 /// Can the cell with the footprint lines `lines` (of its facet's three vertices) contain a point at
 /// height `y` with horizontal position `v`? Never false for a point the exact test accepts (see
 /// the module docs for the bound).
-#[inline]
+#[inline(always)]
 fn footprint_may_contain(lines: &[Footprint; 3], v: Vec2, y: f32, radius: f32) -> bool {
     let f = lines.map(|fp| fp.a + y * fp.b);
     let twice_area = (f[1] - f[0]).perp_dot(f[2] - f[0]);
