@@ -79,7 +79,7 @@ pub const MERGE_DISTANCE_PER_FACET_SIZE: f32 = 1e-3;
 /// does not resolve features narrower than its spacing, so neither does this check.
 pub const CREST_SAMPLE_STEP_PER_SPACING: f64 = 0.5;
 /// Crest check: samples closer to the sight point than this fraction of the spacing (horizontally)
-/// are skipped: there the faceted surface the sight point lies on and the exact surface differ by
+/// are skipped: there the faceted surface the sight point lies on and the check's surface differ by
 /// the faceting error, which says nothing about a crest.
 pub const CREST_GUARD_PER_SPACING: f64 = 0.5;
 
@@ -97,6 +97,14 @@ const MAX_SLABS: usize = 96;
 struct Footprint {
     a: Vec2,
     b: Vec2,
+}
+
+/// A regular facet's three footprint lines and the spread of their `B` (see
+/// [`BlockBound::facet_growth_radius`]).
+#[derive(Clone, Copy, Debug)]
+struct FacetFootprint {
+    lines: [Footprint; 3],
+    b_deviation: f32,
 }
 
 /// What a block of facets needs for its conservative bound.
@@ -145,12 +153,20 @@ impl BlockBound {
     /// `delta_j = y_j(t) - y`, `sum b_j delta_j = 0`, so `sum b_j delta_j B_j = sum b_j delta_j (B_j - B)`
     /// for any fixed B; the block's B-box centre is used.)
     fn growth_radius(&self, y: f32) -> f32 {
+        self.facet_growth_radius(y, self.b_deviation_max)
+    }
+
+    /// [`Self::growth_radius`] for one facet of the block whose three `B` lie within `b_deviation`
+    /// (L1) of their own box centre: the same argument with that centre as the common `B` (any
+    /// fixed B will do) and the block's `Delta`, which bounds every one of its facets' `Delta`.
+    #[inline(always)]
+    fn facet_growth_radius(&self, y: f32, b_deviation: f32) -> f32 {
         let eps = CONTAINMENT_EPS as f32;
         let reach_m = (self.top_y - y + 6.0 * eps * self.facet_height_span).max(0.0);
         let t_max = reach_m / (self.min_descent - 6.0 * eps * self.facet_descent_spread);
         let delta =
             (self.facet_height_span + self.facet_descent_spread * t_max) * (1.0 + 8.0 * eps);
-        delta * self.b_deviation_max * (1.0 + 8.0 * eps)
+        delta * b_deviation * (1.0 + 8.0 * eps)
     }
 
     /// [`Self::box_between`]`(y, y)` with the duplicate products dropped: the same values (min and
@@ -219,7 +235,7 @@ pub struct RefractionField<'a> {
     block_facets: Vec<u32>,
     /// The three footprint lines of each entry of `block_facets`, stored alongside so the hot
     /// loop reads one contiguous run per block instead of chasing triangle and vertex indices.
-    block_facet_footprints: Vec<[Footprint; 3]>,
+    block_facet_footprints: Vec<FacetFootprint>,
     block_bounds: Vec<BlockBound>,
     /// Facets with a ray that gets no footprint bound: always tested.
     unbounded_facets: Vec<u32>,
@@ -444,12 +460,7 @@ impl<'a> RefractionField<'a> {
                     bound.facet_height_span = bound.facet_height_span.max(y_hi - y_lo);
                     bound.facet_descent_spread = bound.facet_descent_spread.max(d_hi - d_lo);
                 }
-                let centre = (bound.b_min + bound.b_max) * 0.5;
-                let half = (bound.b_max - bound.b_min) * 0.5;
-                // Every B in the box is within the half-diagonal of the centre; pad the rounding of
-                // the centre itself.
-                bound.b_deviation_max = (half.x + half.y) * (1.0 + 1e-5)
-                    + 4.0 * f32::EPSILON * (centre.x.abs() + centre.y.abs());
+                bound.b_deviation_max = b_deviation(bound.b_min, bound.b_max);
                 // f32 rounding of A, B, F = A + yB and the box arithmetic: a few ulps of the largest
                 // magnitude involved, generously.
                 let magnitude = coordinate_scale * (1.0 + bound.b_len_max);
@@ -462,7 +473,15 @@ impl<'a> RefractionField<'a> {
         self.block_facet_footprints = facets
             .par_iter()
             .with_min_len(4096)
-            .map(|&facet| triangles[facet as usize].map(|i| footprints[i as usize]))
+            .map(|&facet| {
+                let lines = triangles[facet as usize].map(|i| footprints[i as usize]);
+                let b_min = lines[0].b.min(lines[1].b).min(lines[2].b);
+                let b_max = lines[0].b.max(lines[1].b).max(lines[2].b);
+                FacetFootprint {
+                    lines,
+                    b_deviation: b_deviation(b_min, b_max),
+                }
+            })
             .collect();
         self.block_starts = starts;
         self.block_facets = facets;
@@ -549,14 +568,15 @@ impl<'a> RefractionField<'a> {
                 if v.x < lo.x || v.y < lo.y || v.x > hi.x || v.y > hi.y {
                     continue;
                 }
-                let radius = bound.growth_radius(point.y) + self.footprint_slack;
                 let run = self.block_starts[block as usize] as usize
                     ..self.block_starts[block as usize + 1] as usize;
-                for (&facet, lines) in self.block_facets[run.clone()]
+                for (&facet, footprint) in self.block_facets[run.clone()]
                     .iter()
                     .zip(&self.block_facet_footprints[run])
                 {
-                    if footprint_may_contain(lines, v, point.y, radius) {
+                    let radius = bound.facet_growth_radius(point.y, footprint.b_deviation)
+                        + self.footprint_slack;
+                    if footprint_may_contain(&footprint.lines, v, point.y, radius) {
                         self.push_containments(facet, point64, out);
                     }
                 }
@@ -606,12 +626,13 @@ impl<'a> RefractionField<'a> {
                     continue;
                 }
                 work[1] += 1;
-                let radius = bound.growth_radius(point.y) + self.footprint_slack;
                 let run = self.block_starts[block as usize] as usize
                     ..self.block_starts[block as usize + 1] as usize;
-                for lines in &self.block_facet_footprints[run] {
+                for footprint in &self.block_facet_footprints[run] {
                     work[2] += 1;
-                    if footprint_may_contain(lines, v, point.y, radius) {
+                    let radius = bound.facet_growth_radius(point.y, footprint.b_deviation)
+                        + self.footprint_slack;
+                    if footprint_may_contain(&footprint.lines, v, point.y, radius) {
                         work[3] += 1;
                     }
                 }
@@ -698,8 +719,9 @@ impl<'a> RefractionField<'a> {
     /// faceting error (`crest_tolerance_m`). The surface is the membrane's vertex heights
     /// interpolated bilinearly ([`CrestHeights`]; the exact surface outside a grid membrane): a
     /// sample costs four loads instead of an evaluation of the height field, and the tolerance
-    /// covers both this interpolation's and the facets' distance from the exact surface. Sampled every `CREST_SAMPLE_STEP_PER_SPACING`
-    /// spacings, only on the parts of the segments inside the surface's height range.
+    /// covers both this interpolation's and the facets' distance from the exact surface. Sampled
+    /// every `CREST_SAMPLE_STEP_PER_SPACING` spacings, only on the parts of the segments inside the
+    /// surface's height range.
     pub fn crest_blocks(&self, sight_point: DVec3, point: DVec3) -> bool {
         let eye = self.setup.eye.as_dvec3();
         let tolerance = self.crest_tolerance_m;
@@ -955,6 +977,14 @@ impl CrestHeights {
         let far = h[row + cx + 1] + u * (h[row + cx + 2] - h[row + cx + 1]);
         Some(near + w * (far - near))
     }
+}
+
+/// Largest L1 distance of a `B` in the box `[b_min, b_max]` from the box centre: every B in the
+/// box is within the half-diagonal of the centre; the rounding of the centre itself is padded.
+fn b_deviation(b_min: Vec2, b_max: Vec2) -> f32 {
+    let centre = (b_min + b_max) * 0.5;
+    let half = (b_max - b_min) * 0.5;
+    (half.x + half.y) * (1.0 + 1e-5) + 4.0 * f32::EPSILON * (centre.x.abs() + centre.y.abs())
 }
 
 /// Bins block boxes into a uniform grid of `bin_m` bins (CSR by counting sort).
