@@ -100,7 +100,7 @@ struct Footprint {
 }
 
 /// A regular facet's three footprint lines and the spread of their `B` (see
-/// [`BlockBound::facet_growth_radius`]).
+/// [`growth_radius_from`]).
 #[derive(Clone, Copy, Debug)]
 struct FacetFootprint {
     lines: [Footprint; 3],
@@ -153,20 +153,16 @@ impl BlockBound {
     /// `delta_j = y_j(t) - y`, `sum b_j delta_j = 0`, so `sum b_j delta_j B_j = sum b_j delta_j (B_j - B)`
     /// for any fixed B; the block's B-box centre is used.)
     fn growth_radius(&self, y: f32) -> f32 {
-        self.facet_growth_radius(y, self.b_deviation_max)
+        growth_radius_from(self.height_delta(y), self.b_deviation_max)
     }
 
-    /// [`Self::growth_radius`] for one facet of the block whose three `B` lie within `b_deviation`
-    /// (L1) of their own box centre: the same argument with that centre as the common `B` (any
-    /// fixed B will do) and the block's `Delta`, which bounds every one of its facets' `Delta`.
+    /// `Delta` at height `y` for every cell of the block (with the barycentric slack).
     #[inline(always)]
-    fn facet_growth_radius(&self, y: f32, b_deviation: f32) -> f32 {
+    fn height_delta(&self, y: f32) -> f32 {
         let eps = CONTAINMENT_EPS as f32;
         let reach_m = (self.top_y - y + 6.0 * eps * self.facet_height_span).max(0.0);
         let t_max = reach_m / (self.min_descent - 6.0 * eps * self.facet_descent_spread);
-        let delta =
-            (self.facet_height_span + self.facet_descent_spread * t_max) * (1.0 + 8.0 * eps);
-        delta * b_deviation * (1.0 + 8.0 * eps)
+        (self.facet_height_span + self.facet_descent_spread * t_max) * (1.0 + 8.0 * eps)
     }
 
     /// [`Self::box_between`]`(y, y)` with the duplicate products dropped: the same values (min and
@@ -568,14 +564,15 @@ impl<'a> RefractionField<'a> {
                 if v.x < lo.x || v.y < lo.y || v.x > hi.x || v.y > hi.y {
                     continue;
                 }
+                let delta = bound.height_delta(point.y);
                 let run = self.block_starts[block as usize] as usize
                     ..self.block_starts[block as usize + 1] as usize;
                 for (&facet, footprint) in self.block_facets[run.clone()]
                     .iter()
                     .zip(&self.block_facet_footprints[run])
                 {
-                    let radius = bound.facet_growth_radius(point.y, footprint.b_deviation)
-                        + self.footprint_slack;
+                    let radius =
+                        growth_radius_from(delta, footprint.b_deviation) + self.footprint_slack;
                     if footprint_may_contain(&footprint.lines, v, point.y, radius) {
                         self.push_containments(facet, point64, out);
                     }
@@ -626,12 +623,13 @@ impl<'a> RefractionField<'a> {
                     continue;
                 }
                 work[1] += 1;
+                let delta = bound.height_delta(point.y);
                 let run = self.block_starts[block as usize] as usize
                     ..self.block_starts[block as usize + 1] as usize;
                 for footprint in &self.block_facet_footprints[run] {
                     work[2] += 1;
-                    let radius = bound.facet_growth_radius(point.y, footprint.b_deviation)
-                        + self.footprint_slack;
+                    let radius =
+                        growth_radius_from(delta, footprint.b_deviation) + self.footprint_slack;
                     if footprint_may_contain(&footprint.lines, v, point.y, radius) {
                         work[3] += 1;
                     }
@@ -977,6 +975,16 @@ impl CrestHeights {
         let far = h[row + cx + 1] + u * (h[row + cx + 2] - h[row + cx + 1]);
         Some(near + w * (far - near))
     }
+}
+
+/// The growth radius from `Delta` (`height_delta`) and a bound `b_deviation` on how far the rays'
+/// `B` lie from a common `B`. For a whole block: its B box. For one facet of a block
+/// ([`FacetFootprint::b_deviation`]): its own three `B` around their box centre — the same
+/// argument with that centre as the common `B` (any fixed B will do) and the block's `Delta`,
+/// which bounds every one of its facets' `Delta`.
+#[inline(always)]
+fn growth_radius_from(height_delta: f32, b_deviation: f32) -> f32 {
+    height_delta * b_deviation * (1.0 + 8.0 * CONTAINMENT_EPS as f32)
 }
 
 /// Largest L1 distance of a `B` in the box `[b_min, b_max]` from the box centre: every B in the
