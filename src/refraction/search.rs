@@ -21,8 +21,11 @@
 //! each block keeps boxes of its `A` and `B` and the `Delta` ingredients. `query_y_range` is cut in
 //! depth slabs; per slab a uniform 2-D grid (CSR, counting sort, slabs built in parallel) lists the
 //! blocks whose footprint over the slab can cover each bin. A query visits one bin, re-tests each
-//! listed block's box at its exact height, tests each facet's grown footprint triangle (f32, padded
-//! for rounding) and runs the f64 cubic only on the survivors. Facets with a ray that does not go
+//! listed block's box at its exact height, tests each facet's footprint triangle grown by the
+//! block's `Delta` times the facet's own `B` spread (f32, padded for rounding; the footprint lines
+//! are stored per facet in block order, contiguous) and runs the f64 cubic only on the survivors.
+//! Slabs are a few blocks of footprint slide thick: a block listed in a bin but not covering the
+//! point at its height costs one box test, far less than the build pass each extra slab costs. Facets with a ray that does not go
 //! down steeply enough (`T.y > -MIN_DESCENT`: extrapolated or near-grazing) are always tested.
 //! Thesis cells use a different geometry with no cheap bound here: in [`CellMode::Thesis`] the
 //! accelerated search tests every cell (it exists to reproduce the thesis's tables, not for speed).
