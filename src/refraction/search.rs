@@ -699,12 +699,15 @@ impl<'a> RefractionField<'a> {
         let mut kept = 0;
         for i in 0..images.len() {
             let candidate = images[i];
-            let size = self.facet_size_m(candidate.facet);
-            let duplicate = images[..kept].iter().any(|k| {
-                let tolerance =
-                    MERGE_DISTANCE_PER_FACET_SIZE * size.max(self.facet_size_m(k.facet));
-                (k.sight_point - candidate.sight_point).length() <= tolerance
-            });
+            // Most points have one image: nothing to compare it with, no facet size needed.
+            let duplicate = kept > 0 && {
+                let size = self.facet_size_m(candidate.facet);
+                images[..kept].iter().any(|k| {
+                    let tolerance =
+                        MERGE_DISTANCE_PER_FACET_SIZE * size.max(self.facet_size_m(k.facet));
+                    (k.sight_point - candidate.sight_point).length() <= tolerance
+                })
+            };
             if !duplicate {
                 images[kept] = candidate;
                 kept += 1;
