@@ -379,18 +379,29 @@ mod tests {
             }
         }
         println!("work per 10k queries {sums:?}");
-        let start = Instant::now();
+        // On a shared machine the minimum over many short runs is the stable figure.
         let mut out = Vec::new();
         let mut n = 0;
-        for _ in 0..10 {
+        let mut fastest_batch = f64::INFINITY;
+        for _ in 0..20 {
+            let start = Instant::now();
             for p in points.iter().step_by(10) {
                 field.images(*p, &mut out);
                 n += out.len();
             }
+            fastest_batch = fastest_batch.min(start.elapsed().as_secs_f64());
+        }
+        let mut fastest_build = f64::INFINITY;
+        for _ in 0..10 {
+            let start = Instant::now();
+            let field = RefractionField::build(membrane, surface, *setup, (-2.0, 0.0));
+            fastest_build = fastest_build.min(start.elapsed().as_secs_f64());
+            drop(field);
         }
         println!(
-            "10 x 10k queries single thread {:?}, {n} images",
-            start.elapsed()
+            "single thread: fastest of 20 x 10k queries {:.2} us/query, {n} images; fastest build of 10 {:.1} ms",
+            fastest_batch / 1e4 * 1e6,
+            fastest_build * 1e3
         );
     }
 }

@@ -237,14 +237,18 @@ fn t_upper_bound(cell: &Cell, point: DVec3) -> f64 {
         .iter()
         .map(|t| t.dot(m))
         .fold(f64::INFINITY, f64::min);
+    // One square root of the largest square: the same value as the largest root (sqrt is
+    // correctly rounded and monotone), fewer long-latency operations on the query path.
     let reach = cell
         .origins
         .iter()
-        .map(|p| (point - *p).length())
-        .fold(0.0, f64::max);
+        .map(|p| (point - *p).length_squared())
+        .fold(0.0, f64::max)
+        .sqrt();
     let facet_size = (cell.origins[1] - cell.origins[0])
-        .length()
-        .max((cell.origins[2] - cell.origins[0]).length());
+        .length_squared()
+        .max((cell.origins[2] - cell.origins[0]).length_squared())
+        .sqrt();
     let denominator = min_along - 3.0 * CONTAINMENT_EPS * 2.0;
     if denominator > 1e-3 {
         (reach + facet_size) * 1.01 / denominator

@@ -21,8 +21,11 @@
 //! each block keeps boxes of its `A` and `B` and the `Delta` ingredients. `query_y_range` is cut in
 //! depth slabs; per slab a uniform 2-D grid (CSR, counting sort, slabs built in parallel) lists the
 //! blocks whose footprint over the slab can cover each bin. A query visits one bin, re-tests each
-//! listed block's box at its exact height, tests each facet's grown footprint triangle (f32, padded
-//! for rounding) and runs the f64 cubic only on the survivors. Facets with a ray that does not go
+//! listed block's box at its exact height, tests each facet's footprint triangle grown by the
+//! block's `Delta` times the facet's own `B` spread (f32, padded for rounding; the footprint lines
+//! are stored per facet in block order, contiguous) and runs the f64 cubic only on the survivors.
+//! Slabs are a few blocks of footprint slide thick: a block listed in a bin but not covering the
+//! point at its height costs one box test, far less than the build pass each extra slab costs. Facets with a ray that does not go
 //! down steeply enough (`T.y > -MIN_DESCENT`: extrapolated or near-grazing) are always tested.
 //! Thesis cells use a different geometry with no cheap bound here: in [`CellMode::Thesis`] the
 //! accelerated search tests every cell (it exists to reproduce the thesis's tables, not for speed).
@@ -79,7 +82,7 @@ pub const MERGE_DISTANCE_PER_FACET_SIZE: f32 = 1e-3;
 /// does not resolve features narrower than its spacing, so neither does this check.
 pub const CREST_SAMPLE_STEP_PER_SPACING: f64 = 0.5;
 /// Crest check: samples closer to the sight point than this fraction of the spacing (horizontally)
-/// are skipped: there the faceted surface the sight point lies on and the exact surface differ by
+/// are skipped: there the faceted surface the sight point lies on and the check's surface differ by
 /// the faceting error, which says nothing about a crest.
 pub const CREST_GUARD_PER_SPACING: f64 = 0.5;
 
@@ -87,6 +90,8 @@ pub const CREST_GUARD_PER_SPACING: f64 = 0.5;
 const BLOCK_CELLS: usize = 2;
 /// Rays descending less steeply than this (`T.y > -MIN_DESCENT`) get no footprint bound.
 const MIN_DESCENT: f32 = 0.05;
+/// How many blocks a block's footprint may slide across one depth slab.
+const SLAB_SLIDE_BLOCKS: f32 = 4.0;
 /// At most this many depth slabs.
 const MAX_SLABS: usize = 96;
 
@@ -95,6 +100,14 @@ const MAX_SLABS: usize = 96;
 struct Footprint {
     a: Vec2,
     b: Vec2,
+}
+
+/// A regular facet's three footprint lines and the spread of their `B` (see
+/// [`growth_radius_from`]).
+#[derive(Clone, Copy, Debug)]
+struct FacetFootprint {
+    lines: [Footprint; 3],
+    b_deviation: f32,
 }
 
 /// What a block of facets needs for its conservative bound.
@@ -143,12 +156,31 @@ impl BlockBound {
     /// `delta_j = y_j(t) - y`, `sum b_j delta_j = 0`, so `sum b_j delta_j B_j = sum b_j delta_j (B_j - B)`
     /// for any fixed B; the block's B-box centre is used.)
     fn growth_radius(&self, y: f32) -> f32 {
+        growth_radius_from(self.height_delta(y), self.b_deviation_max)
+    }
+
+    /// `Delta` at height `y` for every cell of the block (with the barycentric slack).
+    #[inline(always)]
+    fn height_delta(&self, y: f32) -> f32 {
         let eps = CONTAINMENT_EPS as f32;
         let reach_m = (self.top_y - y + 6.0 * eps * self.facet_height_span).max(0.0);
         let t_max = reach_m / (self.min_descent - 6.0 * eps * self.facet_descent_spread);
-        let delta =
-            (self.facet_height_span + self.facet_descent_spread * t_max) * (1.0 + 8.0 * eps);
-        delta * self.b_deviation_max * (1.0 + 8.0 * eps)
+        (self.facet_height_span + self.facet_descent_spread * t_max) * (1.0 + 8.0 * eps)
+    }
+
+    /// [`Self::box_between`]`(y, y)` with the duplicate products dropped: the same values (min and
+    /// max over the same set), fewer operations on the query path.
+    #[inline(always)]
+    fn box_at(&self, y: f32) -> (Vec2, Vec2) {
+        let (p, q) = (self.b_min * y, self.b_max * y);
+        let mut lo = self.a_min + Vec2::splat(f32::INFINITY).min(p).min(q);
+        let mut hi = self.a_max + Vec2::splat(f32::NEG_INFINITY).max(p).max(q);
+        let extent = (hi - lo).max(Vec2::ZERO);
+        let pad = Vec2::splat(self.growth_radius(y) + self.slack)
+            + extent * (4.0 * CONTAINMENT_EPS as f32);
+        lo -= pad;
+        hi += pad;
+        (lo, hi)
     }
 
     /// Conservative horizontal box of every cell point of the block with height in `[y_low, y_high]`.
@@ -200,6 +232,9 @@ pub struct RefractionField<'a> {
     /// Regular facets per block (CSR, ascending facet index).
     block_starts: Vec<u32>,
     block_facets: Vec<u32>,
+    /// The three footprint lines of each entry of `block_facets`, stored alongside so the hot
+    /// loop reads one contiguous run per block instead of chasing triangle and vertex indices.
+    block_facet_footprints: Vec<FacetFootprint>,
     block_bounds: Vec<BlockBound>,
     /// Facets with a ray that gets no footprint bound: always tested.
     unbounded_facets: Vec<u32>,
@@ -219,6 +254,8 @@ pub struct RefractionField<'a> {
     tiles_x: usize,
     tiles_z: usize,
     tile_size_m: [f64; 2],
+    /// The height the crest check compares against (see [`CrestHeights`]).
+    crest_heights: CrestHeights,
 }
 
 impl<'a> RefractionField<'a> {
@@ -287,7 +324,8 @@ impl<'a> RefractionField<'a> {
             .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
                 (lo.min(p.y as f64), hi.max(p.y as f64))
             });
-        let crest_tolerance_m = faceting_tolerance(membrane, surface);
+        let crest_heights = CrestHeights::new(membrane);
+        let crest_tolerance_m = faceting_tolerance(membrane, surface, &crest_heights);
         let (query_low, query_high) = query_y_range.unwrap_or((0.0, 0.0));
         let coordinate_scale = membrane
             .positions
@@ -306,6 +344,7 @@ impl<'a> RefractionField<'a> {
             footprints,
             block_starts: Vec::new(),
             block_facets: Vec::new(),
+            block_facet_footprints: Vec::new(),
             block_bounds: Vec::new(),
             unbounded_facets: Vec::new(),
             slab_y_low: 0.0,
@@ -318,6 +357,7 @@ impl<'a> RefractionField<'a> {
             tile_size_m,
             spacing_m,
             crest_tolerance_m,
+            crest_heights,
             surface_y_min: if surface_y_min.is_finite() {
                 surface_y_min
             } else {
@@ -419,12 +459,7 @@ impl<'a> RefractionField<'a> {
                     bound.facet_height_span = bound.facet_height_span.max(y_hi - y_lo);
                     bound.facet_descent_spread = bound.facet_descent_spread.max(d_hi - d_lo);
                 }
-                let centre = (bound.b_min + bound.b_max) * 0.5;
-                let half = (bound.b_max - bound.b_min) * 0.5;
-                // Every B in the box is within the half-diagonal of the centre; pad the rounding of
-                // the centre itself.
-                bound.b_deviation_max = (half.x + half.y) * (1.0 + 1e-5)
-                    + 4.0 * f32::EPSILON * (centre.x.abs() + centre.y.abs());
+                bound.b_deviation_max = b_deviation(bound.b_min, bound.b_max);
                 // f32 rounding of A, B, F = A + yB and the box arithmetic: a few ulps of the largest
                 // magnitude involved, generously.
                 let magnitude = coordinate_scale * (1.0 + bound.b_len_max);
@@ -434,6 +469,19 @@ impl<'a> RefractionField<'a> {
             .collect();
         let b_len_global = bounds.iter().fold(0.0_f32, |m, b| m.max(b.b_len_max));
         self.footprint_slack = 64.0 * f32::EPSILON * coordinate_scale * (1.0 + b_len_global);
+        self.block_facet_footprints = facets
+            .par_iter()
+            .with_min_len(4096)
+            .map(|&facet| {
+                let lines = triangles[facet as usize].map(|i| footprints[i as usize]);
+                let b_min = lines[0].b.min(lines[1].b).min(lines[2].b);
+                let b_max = lines[0].b.max(lines[1].b).max(lines[2].b);
+                FacetFootprint {
+                    lines,
+                    b_deviation: b_deviation(b_min, b_max),
+                }
+            })
+            .collect();
         self.block_starts = starts;
         self.block_facets = facets;
         self.block_bounds = bounds;
@@ -454,9 +502,11 @@ impl<'a> RefractionField<'a> {
             .block_bounds
             .iter()
             .fold(0.0_f32, |m, b| m.max(b.b_len_max));
-        // A slab lets a block's footprint slide by thickness * |B|: keep that near one block (more
-        // slabs cost more build than they save in queries at 100k points per frame).
-        let ideal_thickness = block_m / b_len_max.max(1e-3);
+        // A slab lets a block's footprint slide by thickness * |B|: a few blocks. A query re-tests
+        // each listed block's box at its own height (exact, cheap), so thick slabs only add cheap
+        // box tests, while each slab costs a pass over every block in the build (measured on the
+        // pool: 35 -> 9 slabs cut the entries 2.1 M -> 0.8 M for 12 -> 17 box tests per query).
+        let ideal_thickness = SLAB_SLIDE_BLOCKS * block_m / b_len_max.max(1e-3);
         let depth = (y_high - y_low).max(1e-6);
         let slab_count = ((depth / ideal_thickness).ceil() as usize).clamp(1, MAX_SLABS);
         let thickness = depth / slab_count as f32;
@@ -513,15 +563,20 @@ impl<'a> RefractionField<'a> {
                 &slab.blocks[slab.bin_starts[bin] as usize..slab.bin_starts[bin + 1] as usize];
             for &block in entries {
                 let bound = &self.block_bounds[block as usize];
-                let (lo, hi) = bound.box_between(point.y, point.y);
+                let (lo, hi) = bound.box_at(point.y);
                 if v.x < lo.x || v.y < lo.y || v.x > hi.x || v.y > hi.y {
                     continue;
                 }
-                let radius = bound.growth_radius(point.y) + self.footprint_slack;
-                let facets = &self.block_facets[self.block_starts[block as usize] as usize
-                    ..self.block_starts[block as usize + 1] as usize];
-                for &facet in facets {
-                    if self.footprint_may_contain(facet, v, point.y, radius) {
+                let delta = bound.height_delta(point.y);
+                let run = self.block_starts[block as usize] as usize
+                    ..self.block_starts[block as usize + 1] as usize;
+                for (&facet, footprint) in self.block_facets[run.clone()]
+                    .iter()
+                    .zip(&self.block_facet_footprints[run])
+                {
+                    let radius =
+                        growth_radius_from(delta, footprint.b_deviation) + self.footprint_slack;
+                    if footprint_may_contain(&footprint.lines, v, point.y, radius) {
                         self.push_containments(facet, point64, out);
                     }
                 }
@@ -566,17 +621,19 @@ impl<'a> RefractionField<'a> {
             work[0] = entries.len();
             for &block in entries {
                 let bound = &self.block_bounds[block as usize];
-                let (lo, hi) = bound.box_between(point.y, point.y);
+                let (lo, hi) = bound.box_at(point.y);
                 if v.x < lo.x || v.y < lo.y || v.x > hi.x || v.y > hi.y {
                     continue;
                 }
                 work[1] += 1;
-                let radius = bound.growth_radius(point.y) + self.footprint_slack;
-                let facets = &self.block_facets[self.block_starts[block as usize] as usize
-                    ..self.block_starts[block as usize + 1] as usize];
-                for &facet in facets {
+                let delta = bound.height_delta(point.y);
+                let run = self.block_starts[block as usize] as usize
+                    ..self.block_starts[block as usize + 1] as usize;
+                for footprint in &self.block_facet_footprints[run] {
                     work[2] += 1;
-                    if self.footprint_may_contain(facet, v, point.y, radius) {
+                    let radius =
+                        growth_radius_from(delta, footprint.b_deviation) + self.footprint_slack;
+                    if footprint_may_contain(&footprint.lines, v, point.y, radius) {
                         work[3] += 1;
                     }
                 }
@@ -596,35 +653,11 @@ impl<'a> RefractionField<'a> {
     }
 
     /// The cell of one facet.
+    #[inline]
     pub fn cell(&self, facet: u32) -> Cell {
         let tri = self.membrane.triangles[facet as usize];
         let r = tri.map(|i| self.rays[i as usize]);
         Cell::new(r.map(|r| r.origin), r.map(|r| r.direction))
-    }
-
-    /// Can the facet's cell contain a point at height `y` with horizontal position `v`? Never
-    /// false for a point the exact test accepts (see the module docs for the bound).
-    #[inline]
-    fn footprint_may_contain(&self, facet: u32, v: Vec2, y: f32, radius: f32) -> bool {
-        let tri = self.membrane.triangles[facet as usize];
-        let f = tri.map(|i| {
-            let fp = self.footprints[i as usize];
-            fp.a + y * fp.b
-        });
-        let twice_area = (f[1] - f[0]).perp_dot(f[2] - f[0]);
-        let sign = if twice_area >= 0.0 { 1.0 } else { -1.0 };
-        let area_slack = CONTAINMENT_EPS as f32 * 1.01 * twice_area.abs();
-        for k in 0..3 {
-            let (from, to) = (f[(k + 1) % 3], f[(k + 2) % 3]);
-            let edge = to - from;
-            let side = sign * edge.perp_dot(v - from);
-            // An L1 edge length bounds the Euclidean one from above: conservative.
-            let margin = area_slack + (edge.x.abs() + edge.y.abs()) * radius;
-            if side < -margin {
-                return false;
-            }
-        }
-        true
     }
 
     fn push_containments(&self, facet: u32, point: DVec3, out: &mut Vec<Image>) {
@@ -666,12 +699,15 @@ impl<'a> RefractionField<'a> {
         let mut kept = 0;
         for i in 0..images.len() {
             let candidate = images[i];
-            let size = self.facet_size_m(candidate.facet);
-            let duplicate = images[..kept].iter().any(|k| {
-                let tolerance =
-                    MERGE_DISTANCE_PER_FACET_SIZE * size.max(self.facet_size_m(k.facet));
-                (k.sight_point - candidate.sight_point).length() <= tolerance
-            });
+            // Most points have one image: nothing to compare it with, no facet size needed.
+            let duplicate = kept > 0 && {
+                let size = self.facet_size_m(candidate.facet);
+                images[..kept].iter().any(|k| {
+                    let tolerance =
+                        MERGE_DISTANCE_PER_FACET_SIZE * size.max(self.facet_size_m(k.facet));
+                    (k.sight_point - candidate.sight_point).length() <= tolerance
+                })
+            };
             if !duplicate {
                 images[kept] = candidate;
                 kept += 1;
@@ -681,11 +717,15 @@ impl<'a> RefractionField<'a> {
         images.retain(|image| !self.crest_blocks(image.sight_point.as_dvec3(), point));
     }
 
-    /// Is the path eye -> sight point -> point blocked by the exact surface (ALGORITHM §6)? The
+    /// Is the path eye -> sight point -> point blocked by the surface (ALGORITHM §6)? The
     /// segment from the eye must stay above the surface and the one to the point below it, except
     /// within `CREST_GUARD_PER_SPACING` spacings of the sight point, with a tolerance of the
-    /// faceting error (`crest_tolerance_m`). Sampled every `CREST_SAMPLE_STEP_PER_SPACING`
-    /// spacings, only on the parts of the segments inside the surface's height range.
+    /// faceting error (`crest_tolerance_m`). The surface is the membrane's vertex heights
+    /// interpolated bilinearly ([`CrestHeights`]; the exact surface outside a grid membrane): a
+    /// sample costs four loads instead of an evaluation of the height field, and the tolerance
+    /// covers both this interpolation's and the facets' distance from the exact surface. Sampled
+    /// every `CREST_SAMPLE_STEP_PER_SPACING` spacings, only on the parts of the segments inside the
+    /// surface's height range.
     pub fn crest_blocks(&self, sight_point: DVec3, point: DVec3) -> bool {
         let eye = self.setup.eye.as_dvec3();
         let tolerance = self.crest_tolerance_m;
@@ -696,21 +736,16 @@ impl<'a> RefractionField<'a> {
         } else {
             1.0
         };
-        // The exact height is costly (a sum of waves): a tile whose vertices are all below the
-        // sample cannot put the surface above it. The exact surface exceeds the facets by at most
-        // the faceting gap, which the tolerance (twice the sampled gap) already absorbs.
-        // The exact height is costly (a sum of waves): where the sample is above every membrane
-        // vertex of the 3 x 3 tiles around it, the surface cannot be above it here or anywhere
-        // within a tile ahead (the segment only rises toward the eye), so the walk skips a tile.
-        // The exact surface exceeds the facets by at most the faceting gap, which the tolerance
-        // (twice the sampled gap) already absorbs.
+        // Where the sample is above every membrane vertex of the 3 x 3 tiles around it, the
+        // interpolated surface (within its cell's vertex heights) cannot be above it here or
+        // anywhere within a tile ahead (the segment only rises toward the eye): skip a tile.
         let under = |x: DVec3| {
             if let Some([_, high]) = self.tile_height_range(x.x, x.z) {
                 if x.y >= high as f64 {
                     return Probe::ClearAhead;
                 }
             }
-            if x.y < self.surface.height(x.x, x.z) - tolerance {
+            if x.y < self.crest_height(x.x, x.z) - tolerance {
                 Probe::Hit
             } else {
                 Probe::Clear
@@ -731,13 +766,22 @@ impl<'a> RefractionField<'a> {
                     return Probe::ClearAhead;
                 }
             }
-            if x.y > self.surface.height(x.x, x.z) + tolerance {
+            if x.y > self.crest_height(x.x, x.z) + tolerance {
                 Probe::Hit
             } else {
                 Probe::Clear
             }
         };
         self.segment_hits(sight_point, to_point, point_end, to_point.y <= 0.0, over)
+    }
+
+    /// The surface height the crest check uses at (x, z): the membrane vertices' bilinear
+    /// interpolation inside a grid membrane, the exact surface elsewhere.
+    #[inline]
+    fn crest_height(&self, x: f64, z: f64) -> f64 {
+        self.crest_heights
+            .height(x, z)
+            .unwrap_or_else(|| self.surface.height(x, z))
     }
 
     /// (min, max) vertex height of the membrane's 3 x 3 tiles around (x, z); None outside it.
@@ -785,6 +829,28 @@ impl<'a> RefractionField<'a> {
             along_m = at_m + advance_m;
         }
     }
+}
+
+/// Can the cell with the footprint lines `lines` (of its facet's three vertices) contain a point at
+/// height `y` with horizontal position `v`? Never false for a point the exact test accepts (see
+/// the module docs for the bound).
+#[inline(always)]
+fn footprint_may_contain(lines: &[Footprint; 3], v: Vec2, y: f32, radius: f32) -> bool {
+    let f = lines.map(|fp| fp.a + y * fp.b);
+    let twice_area = (f[1] - f[0]).perp_dot(f[2] - f[0]);
+    let sign = if twice_area >= 0.0 { 1.0 } else { -1.0 };
+    let area_slack = CONTAINMENT_EPS as f32 * 1.01 * twice_area.abs();
+    for k in 0..3 {
+        let (from, to) = (f[(k + 1) % 3], f[(k + 2) % 3]);
+        let edge = to - from;
+        let side = sign * edge.perp_dot(v - from);
+        // An L1 edge length bounds the Euclidean one from above: conservative.
+        let margin = area_slack + (edge.x.abs() + edge.y.abs()) * radius;
+        if side < -margin {
+            return false;
+        }
+    }
+    true
 }
 
 /// One sample of the crest walk.
@@ -844,6 +910,95 @@ fn tile_height_ranges(membrane: &Membrane) -> (Vec<[f32; 2]>, usize, usize, [f64
         })
         .collect();
     (dilated, tiles_x, tiles_z, tile_size_m)
+}
+
+/// The membrane's vertex heights on its grid, interpolated bilinearly: the surface of the crest
+/// check. Empty (every query None) when the membrane is not the row-major vertex grid its `grid`
+/// describes.
+#[derive(Debug)]
+struct CrestHeights {
+    heights: Vec<f64>,
+    cells: [usize; 2],
+    origin_m: [f64; 2],
+    inverse_cell_m: [f64; 2],
+}
+
+impl CrestHeights {
+    fn new(membrane: &Membrane) -> Self {
+        let grid = membrane.grid;
+        let (cx, cz) = (grid.cells_x as usize, grid.cells_z as usize);
+        let cell_m = [
+            (grid.max_x - grid.min_x) / cx.max(1) as f64,
+            (grid.max_z - grid.min_z) / cz.max(1) as f64,
+        ];
+        let empty = Self {
+            heights: Vec::new(),
+            cells: [0, 0],
+            origin_m: [0.0, 0.0],
+            inverse_cell_m: [1.0, 1.0],
+        };
+        if cx == 0
+            || cz == 0
+            || membrane.positions.len() != (cx + 1) * (cz + 1)
+            || !(cell_m[0] > 0.0 && cell_m[1] > 0.0)
+        {
+            return empty;
+        }
+        // Interpolating between grid points is only the membrane if the vertices sit on them.
+        let on_grid = membrane.positions.par_iter().enumerate().all(|(i, p)| {
+            let (ix, iz) = (i % (cx + 1), i / (cx + 1));
+            let x = grid.min_x + cell_m[0] * ix as f64;
+            let z = grid.min_z + cell_m[1] * iz as f64;
+            (p.x as f64 - x).abs() <= 1e-3 * cell_m[0] && (p.z as f64 - z).abs() <= 1e-3 * cell_m[1]
+        });
+        if !on_grid {
+            return empty;
+        }
+        Self {
+            heights: membrane.positions.iter().map(|p| p.y as f64).collect(),
+            cells: [cx, cz],
+            origin_m: [grid.min_x, grid.min_z],
+            inverse_cell_m: [1.0 / cell_m[0], 1.0 / cell_m[1]],
+        }
+    }
+
+    /// Bilinear height at (x, z); None outside the grid (or without one).
+    #[inline]
+    fn height(&self, x: f64, z: f64) -> Option<f64> {
+        let fx = (x - self.origin_m[0]) * self.inverse_cell_m[0];
+        let fz = (z - self.origin_m[1]) * self.inverse_cell_m[1];
+        let [cx, cz] = self.cells;
+        if !(fx >= 0.0 && fz >= 0.0 && fx <= cx as f64 && fz <= cz as f64)
+            || self.heights.is_empty()
+        {
+            return None;
+        }
+        let (ix, iz) = ((fx as usize).min(cx - 1), (fz as usize).min(cz - 1));
+        let (u, w) = (fx - ix as f64, fz - iz as f64);
+        let row = iz * (cx + 1) + ix;
+        let h = &self.heights;
+        let near = h[row] + u * (h[row + 1] - h[row]);
+        let far = h[row + cx + 1] + u * (h[row + cx + 2] - h[row + cx + 1]);
+        Some(near + w * (far - near))
+    }
+}
+
+/// The growth radius from `Delta` (`height_delta`) and a bound `b_deviation` on how far the rays'
+/// `B` lie from a common `B`. For a whole block: its B box. For one facet of a block
+/// ([`FacetFootprint::b_deviation`]): its own three `B` around their box centre — the same
+/// argument with that centre as the common `B` (any fixed B will do) and the block's `Delta`,
+/// which bounds every one of its facets' `Delta`.
+#[inline(always)]
+fn growth_radius_from(height_delta: f32, b_deviation: f32) -> f32 {
+    height_delta * b_deviation * (1.0 + 8.0 * CONTAINMENT_EPS as f32)
+}
+
+/// Largest L1 distance of a `B` in the box `[b_min, b_max]` from the box centre: every B in the
+/// box is within the half-diagonal of the centre; the rounding of the centre itself is padded.
+fn b_deviation(b_min: Vec2, b_max: Vec2) -> f32 {
+    let centre = (b_min + b_max) * 0.5;
+    let half = (b_max - b_min) * 0.5;
+    (half.x + half.y) * (1.0 + 1e-5) + 4.0 * f32::EPSILON * (centre.x.abs() + centre.y.abs())
 }
 
 /// Bins block boxes into a uniform grid of `bin_m` bins (CSR by counting sort).
@@ -921,10 +1076,16 @@ fn bin_blocks(boxes: &[(Vec2, Vec2)], bin_m: f32) -> Slab {
     }
 }
 
-/// Twice the largest gap between the faceted membrane and the exact surface, sampled at facet
-/// centroids and edge midpoints of at most ~2,000 facets (evenly strided), plus rounding: the
-/// height tolerance of the crest check.
-fn faceting_tolerance(membrane: &Membrane, surface: &dyn HeightField) -> f64 {
+/// Twice the largest gap between the faceted membrane (or the crest check's interpolated heights)
+/// and the exact surface, sampled at facet centroids and edge midpoints of at most ~2,000 facets
+/// (evenly strided), plus rounding: the height tolerance of the crest check. Twice, so that it
+/// also covers the distance between the facets (where sight points lie) and the interpolated
+/// heights (the check's surface): both are within the gap of the exact surface.
+fn faceting_tolerance(
+    membrane: &Membrane,
+    surface: &dyn HeightField,
+    crest_heights: &CrestHeights,
+) -> f64 {
     let n = membrane.triangles.len();
     if n == 0 {
         return 0.0;
@@ -944,7 +1105,12 @@ fn faceting_tolerance(membrane: &Membrane, surface: &dyn HeightField) -> f64 {
             ];
             samples
                 .iter()
-                .map(|s| (s.y - surface.height(s.x, s.z)).abs())
+                .map(|s| {
+                    let exact = surface.height(s.x, s.z);
+                    // The crest check's interpolated height must be as close to the exact one.
+                    let interpolated = crest_heights.height(s.x, s.z).unwrap_or(exact);
+                    (s.y - exact).abs().max((interpolated - exact).abs())
+                })
                 .fold(0.0, f64::max)
         })
         .reduce(|| 0.0, f64::max);
