@@ -406,10 +406,7 @@ impl RenderJob {
                     "convergencePolicy".to_string(),
                     CONVERGENCE_POLICY.to_string(),
                 ),
-                (
-                    "scene".to_string(),
-                    self.scene.path.display().to_string(),
-                ),
+                ("scene".to_string(), self.scene.path.display().to_string()),
             ],
         }
     }

@@ -20,7 +20,9 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::search::{CellMode, Image, RefractionField, RefractionSetup};
-use crate::water::{HeightField, Membrane, MembraneGrid};
+use crate::water::{
+    build_membrane, HeightField, Membrane, MembraneGrid, WaterSurface, Wave, WaveField,
+};
 
 /// The figures `snell bench` prints.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -49,70 +51,27 @@ pub struct SearchBenchFigures {
     pub repetitions: usize,
 }
 
-/// A sum of height waves `a sin(k . (x, z) + phase)` above `level_m`.
-struct WaveSum {
-    /// (amplitude, kx, kz, phase)
-    waves: Vec<(f64, f64, f64, f64)>,
-}
-
-impl HeightField for WaveSum {
-    fn height(&self, x: f64, z: f64) -> f64 {
-        self.waves
-            .iter()
-            .map(|&(a, kx, kz, ph)| a * (kx * x + kz * z + ph).sin())
-            .sum()
-    }
-    fn gradient(&self, x: f64, z: f64) -> (f64, f64) {
-        self.waves
-            .iter()
-            .fold((0.0, 0.0), |(gx, gz), &(a, kx, kz, ph)| {
-                let c = a * (kx * x + kz * z + ph).cos();
-                (gx + c * kx, gz + c * kz)
-            })
-    }
-}
-
-/// (amplitude, wavelength, direction in degrees, phase) -> wave sum.
-fn waves(list: &[(f64, f64, f64, f64)]) -> WaveSum {
-    WaveSum {
+/// (amplitude, wavelength, direction in degrees, phase) -> the water stage's own wave field at
+/// t = 0, so the benchmark measures the membrane and height field a render uses.
+fn waves(list: &[(f64, f64, f64, f64)]) -> WaterSurface {
+    WaveField {
+        level_m: 0.0,
         waves: list
             .iter()
-            .map(|&(a, wavelength, dir_deg, ph)| {
-                let k = std::f64::consts::TAU / wavelength;
-                let d = dir_deg.to_radians();
-                (a, k * d.cos(), k * d.sin(), ph)
+            .map(|&(amplitude_m, wavelength_m, dir_deg, phase_rad)| Wave {
+                amplitude_m,
+                wavelength_m,
+                direction: [dir_deg.to_radians().cos(), dir_deg.to_radians().sin()],
+                phase_rad,
+                speed_m_per_s: None,
             })
             .collect(),
     }
+    .at(0.0)
 }
 
 fn membrane(surface: &dyn HeightField, grid: MembraneGrid) -> Membrane {
-    let (cx, cz) = (grid.cells_x as usize, grid.cells_z as usize);
-    let mut positions = Vec::with_capacity((cx + 1) * (cz + 1));
-    let mut normals = Vec::with_capacity((cx + 1) * (cz + 1));
-    for iz in 0..=cz {
-        for ix in 0..=cx {
-            let x = grid.min_x + (grid.max_x - grid.min_x) * ix as f64 / cx as f64;
-            let z = grid.min_z + (grid.max_z - grid.min_z) * iz as f64 / cz as f64;
-            positions.push(Vec3::new(x as f32, surface.height(x, z) as f32, z as f32));
-            normals.push(surface.normal(x, z).as_vec3());
-        }
-    }
-    let mut triangles = Vec::with_capacity(2 * cx * cz);
-    for iz in 0..cz {
-        for ix in 0..cx {
-            let v00 = (iz * (cx + 1) + ix) as u32;
-            let v01 = v00 + cx as u32 + 1;
-            triangles.push([v00, v01, v00 + 1]);
-            triangles.push([v00 + 1, v01, v01 + 1]);
-        }
-    }
-    Membrane {
-        grid,
-        positions,
-        normals,
-        triangles,
-    }
+    build_membrane(surface, &grid)
 }
 
 /// Seeded SplitMix64 in [0, 1).
@@ -215,7 +174,7 @@ fn query_all(field: &RefractionField, points: &[Vec3], accelerated: bool) -> (us
 }
 
 /// The pool scenario: surface, membrane, query vertices, setup.
-fn pool_scenario() -> (WaveSum, Membrane, Vec<Vec3>, RefractionSetup) {
+fn pool_scenario() -> (WaterSurface, Membrane, Vec<Vec3>, RefractionSetup) {
     let pool_surface = waves(&[
         (0.05, 4.5, 10.0, 0.0),
         (0.03, 2.7, 70.0, 1.3),
