@@ -56,7 +56,7 @@ impl BenchFigures {
             text.push_str(&format!("  {stage:<12} {ms:8.2} ms\n"));
         }
         text.push_str(&format!(
-            "  refraction + render (readback included): {:.2} ms\n",
+            "  water + refraction + render (readback included): {:.2} ms\n",
             self.frame.refraction_plus_render_ms
         ));
         text
