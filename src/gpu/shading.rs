@@ -45,18 +45,11 @@ pub fn sky_radiance(direction: Vec3, lighting: &Lighting) -> Vec3 {
 /// Schlick's fraction reflected (ALGORITHM §3) for a sight ray `incident` meeting a membrane of unit
 /// `normal` pointing to the eye's side, with `n_above` on the eye's side.
 pub fn schlick_reflectance(incident: Vec3, normal: Vec3, n_above: f32, n_below: f32) -> f32 {
-    let r0 = ((n_above - n_below) / (n_above + n_below)).powi(2);
-    let cos_incidence = -incident.dot(normal);
-    let mut x = cos_incidence.clamp(0.0, 1.0);
-    if n_above > n_below {
-        let eta = n_above / n_below;
-        let k = 1.0 - eta * eta * (1.0 - x * x);
-        if k < 0.0 {
-            return 1.0;
-        }
-        x = k.sqrt();
-    }
-    r0 + (1.0 - r0) * (1.0 - x).powi(5)
+    // The shader clamps the cosine before the radicand (a back-facing pixel counts as grazing).
+    let cos_incidence = (-incident.dot(normal)).clamp(0.0, 1.0);
+    let eta = n_above / n_below;
+    let radicand = 1.0 - eta * eta * (1.0 - cos_incidence * cos_incidence);
+    crate::refraction::rays::schlick_reflectance(cos_incidence, radicand, n_above, n_below)
 }
 
 /// Unit vector toward the sun as seen under the flat mean water plane (sunlight refracted into the
@@ -110,13 +103,10 @@ pub fn shade_under(
     lit * transmittance + water.scatter_color_linear * (Vec3::ONE - transmittance)
 }
 
-/// Per-channel transmittance `exp(-sigma * path)`.
+/// Per-channel transmittance `exp(-sigma * path)`; a negative path (round-off at the surface)
+/// counts as zero, as in the shaders' callers.
 pub fn beer_lambert(absorption_per_m: Vec3, path_m: f32) -> Vec3 {
-    Vec3::new(
-        (-absorption_per_m.x * path_m).exp(),
-        (-absorption_per_m.y * path_m).exp(),
-        (-absorption_per_m.z * path_m).exp(),
-    )
+    (-absorption_per_m * path_m.max(0.0)).exp()
 }
 
 #[cfg(test)]

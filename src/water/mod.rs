@@ -1,13 +1,11 @@
 //! Stage 2, water: the analytic wave field (a sum of height waves, y = h(x, z, t)), the height-field
 //! view of it at one instant, and the triangulated membrane grid with analytic normals.
 //! Receives the scene's water description and a time; returns a [`Membrane`] and a [`HeightField`].
-//! [`optics`] holds the CPU reference of the water's shading terms (refracted sun, Beer-Lambert).
 
 use glam::{DVec3, Vec3};
 
 mod height_fields;
 mod membrane;
-pub mod optics;
 mod waves;
 
 pub use height_fields::{FlatHeightField, FnHeightField};
