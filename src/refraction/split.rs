@@ -231,16 +231,6 @@ mod tests {
         }
     }
 
-    struct Flat(f64);
-    impl HeightField for Flat {
-        fn height(&self, _: f64, _: f64) -> f64 {
-            self.0
-        }
-        fn gradient(&self, _: f64, _: f64) -> (f64, f64) {
-            (0.0, 0.0)
-        }
-    }
-
     fn extent(half_m: f64) -> MembraneGrid {
         MembraneGrid {
             min_x: -half_m,
@@ -422,7 +412,7 @@ mod tests {
             triangles: vec![[0, 1, 2]],
         };
         let water = WaterVolume {
-            surface: &Flat(0.0),
+            surface: &crate::water::FlatHeightField { level_m: 0.0 },
             extent: extent(5.0),
         };
         let split = split_mesh(&mesh, &water);
@@ -457,7 +447,7 @@ mod tests {
             triangles: vec![[0, 2, 1]],
         };
         let water = WaterVolume {
-            surface: &Flat(0.0),
+            surface: &crate::water::FlatHeightField { level_m: 0.0 },
             extent: extent(2.0),
         };
         let split = split_mesh(&mesh, &water);

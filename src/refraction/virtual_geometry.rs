@@ -385,20 +385,10 @@ mod tests {
     use crate::refraction::flags::facets_adjacent;
     use crate::refraction::flat::flat_sight_point;
     use crate::refraction::search::{CellMode, RefractionSetup};
-    use crate::water::{HeightField, MembraneGrid};
+    use crate::water::{FlatHeightField, HeightField, MembraneGrid};
 
     const N_AIR: f32 = 1.0;
     const N_WATER: f32 = 1.333;
-
-    struct Flat(f64);
-    impl HeightField for Flat {
-        fn height(&self, _: f64, _: f64) -> f64 {
-            self.0
-        }
-        fn gradient(&self, _: f64, _: f64) -> (f64, f64) {
-            (0.0, 0.0)
-        }
-    }
 
     /// A steep Gaussian ridge along z, centred on x = `centre_x_m`: a lens that focuses rays, so
     /// points deep under it have three images.
@@ -538,7 +528,7 @@ mod tests {
 
     /// Virtual vertices of every sample under flat water seen through a membrane of `cells` x `cells`.
     fn flat_water_geometry(cells: u32, search: ImageSearch, objects: &[Object]) -> VirtualGeometry {
-        let surface = Flat(0.0);
+        let surface = FlatHeightField { level_m: 0.0 };
         let membrane = membrane_of(&surface, grid((-2.0, -2.0), (2.0, 2.0), (cells, cells)));
         let field = RefractionField::build(
             &membrane,
@@ -675,7 +665,7 @@ mod tests {
         // The eye is outside the pool (x < -2): deep points near the near wall are seen through
         // sight points beyond the membrane's edge, so they have no image.
         let eye = Vec3::new(-5.0, 2.0, 0.0);
-        let surface = Flat(0.0);
+        let surface = FlatHeightField { level_m: 0.0 };
         let membrane = membrane_of(&surface, grid((-2.0, -2.0), (2.0, 2.0), (16, 16)));
         let positions = vec![
             Vec3::new(-1.9, -2.0, 0.0), // 0: no image
@@ -961,7 +951,7 @@ mod tests {
     /// neighbouring facet: a continuation, not popping.
     #[test]
     fn crossing_into_a_neighbouring_cell_does_not_pop() {
-        let surface = Flat(0.0);
+        let surface = FlatHeightField { level_m: 0.0 };
         let membrane = membrane_of(&surface, grid((-2.0, -2.0), (2.0, 2.0), (16, 16)));
         let point = Vec3::new(0.3, -1.0, 0.5);
         let objects = [probe_object(point)];
