@@ -13,6 +13,7 @@
 //! and by the tests.
 
 pub mod camera;
+pub mod color;
 pub mod draw;
 pub mod frame;
 pub mod gpu;

@@ -7,6 +7,7 @@
 
 use glam::{Vec2, Vec3};
 use snell::camera::Camera;
+use snell::color::srgb8_to_linear as srgb_to_linear;
 use snell::draw::{
     flag_bits, DrawMaterial, FrameDraw, FrameView, Lighting, MembraneVertex, RenderedFrame,
     TrueVertex, VirtualVertex, WaterOptics,
@@ -49,15 +50,6 @@ fn view() -> FrameView {
             scatter_color_linear: Vec3::new(0.01, 0.06, 0.09),
             mean_level_m: 0.0,
         },
-    }
-}
-
-fn srgb_to_linear(encoded: u8) -> f32 {
-    let c = encoded as f32 / 255.0;
-    if c <= 0.04045 {
-        c / 12.92
-    } else {
-        ((c + 0.055) / 1.055).powf(2.4)
     }
 }
 

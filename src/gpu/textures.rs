@@ -7,31 +7,14 @@ use crate::mesh::Texture;
 use super::GpuError;
 
 /// The format every texture is stored in: decoding sRGB is the sampler's job.
+use crate::color::{linear_to_srgb8 as linear_to_srgb, srgb8_to_linear as srgb_to_linear};
+
 pub(crate) const TEXTURE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
 
 /// Textures as uploaded: what the bind group needs.
 pub(crate) struct TextureArray {
     pub view: wgpu::TextureView,
     pub layer_count: u32,
-}
-
-fn srgb_to_linear(encoded: u8) -> f32 {
-    let c = encoded as f32 / 255.0;
-    if c <= 0.04045 {
-        c / 12.92
-    } else {
-        ((c + 0.055) / 1.055).powf(2.4)
-    }
-}
-
-fn linear_to_srgb(linear: f32) -> u8 {
-    let c = linear.clamp(0.0, 1.0);
-    let encoded = if c <= 0.0031308 {
-        c * 12.92
-    } else {
-        1.055 * c.powf(1.0 / 2.4) - 0.055
-    };
-    (encoded * 255.0 + 0.5) as u8
 }
 
 /// Half-size image by a 2x2 box in linear light (alpha linear already). Odd sizes clamp the last

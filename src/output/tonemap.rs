@@ -61,11 +61,7 @@ pub fn aces_fitted(linear_rgb: [f32; 3]) -> [f32; 3] {
 
 /// The sRGB transfer function (IEC 61966-2-1) on a display-linear value in [0, 1].
 pub fn srgb_encode(linear: f32) -> f32 {
-    if linear <= 0.0031308 {
-        linear * 12.92
-    } else {
-        1.055 * linear.powf(1.0 / 2.4) - 0.055
-    }
+    crate::color::linear_to_srgb(linear as f64) as f32
 }
 
 fn to_u8(unit: f32) -> u8 {

@@ -278,26 +278,10 @@ fn unit_hash(x: u32, y: u32, seed: u32) -> f64 {
     (h >> 11) as f64 / (1u64 << 53) as f64
 }
 
-/// sRGB-encoded component (0..=1) to linear.
-pub fn srgb_to_linear(c: f64) -> f64 {
-    if c <= 0.04045 {
-        c / 12.92
-    } else {
-        ((c + 0.055) / 1.055).powf(2.4)
-    }
-}
+pub use crate::color::{linear_to_srgb, srgb_to_linear};
 
 pub fn srgb_to_linear3(c: [f64; 3]) -> [f64; 3] {
     c.map(srgb_to_linear)
-}
-
-fn linear_to_srgb(c: f64) -> f64 {
-    let c = c.clamp(0.0, 1.0);
-    if c <= 0.003_130_8 {
-        c * 12.92
-    } else {
-        1.055 * c.powf(1.0 / 2.4) - 0.055
-    }
 }
 
 fn encode_srgb8(linear: [f64; 3]) -> [u8; 4] {
