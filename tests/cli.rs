@@ -84,51 +84,63 @@ fn replace_once(text: &str, from: &str, to: &str) -> String {
     text.replacen(from, to, 1)
 }
 
+/// `":N:"`, where N is the 1-based line of `text` that contains `needle`: how an error names its line.
+fn line_marker(text: &str, needle: &str) -> String {
+    let line = text
+        .lines()
+        .position(|l| l.contains(needle))
+        .expect("the edited line is there")
+        + 1;
+    format!(":{line}:")
+}
+
+/// Edits tiny.toml (`from` -> `to`) and expects an error naming the file, the line holding `marked`
+/// and each of `needles`.
+fn expect_bad_edit(from: &str, to: &str, marked: &str, needles: &[&str]) {
+    let text = replace_once(TINY, from, to);
+    let mut all = vec!["bad.toml".to_string(), line_marker(&text, marked)];
+    all.extend(needles.iter().map(|n| n.to_string()));
+    expect_bad_input(&text, &all.iter().map(String::as_str).collect::<Vec<_>>());
+}
+
 #[test]
 fn malformed_toml_names_file_line_and_column() {
-    let text = replace_once(TINY, "fps = 24", "fps = = 24");
-    let line = text.lines().position(|l| l.contains("fps = = 24")).unwrap() + 1;
-    expect_bad_input(&text, &["bad.toml", &format!(":{line}:")]);
+    expect_bad_edit("fps = 24", "fps = = 24", "fps = = 24", &[]);
 }
 
 #[test]
 fn unknown_key_is_named() {
-    let text = replace_once(TINY, "fps = 24", "fps = 24\nfsp = 25");
-    let line = text.lines().position(|l| l.starts_with("fsp")).unwrap() + 1;
-    expect_bad_input(&text, &["bad.toml", &format!(":{line}:"), "fsp"]);
+    expect_bad_edit("fps = 24", "fps = 24\nfsp = 25", "fsp = 25", &["fsp"]);
 }
 
 #[test]
 fn zero_resolution_is_refused() {
-    let text = replace_once(TINY, "resolution = [16, 16]", "resolution = [0, 16]");
-    let line = text
-        .lines()
-        .position(|l| l.contains("resolution = [0, 16]"))
-        .unwrap()
-        + 1;
-    expect_bad_input(&text, &["bad.toml", &format!(":{line}:"), "resolution"]);
+    expect_bad_edit(
+        "resolution = [16, 16]",
+        "resolution = [0, 16]",
+        "resolution = [0, 16]",
+        &["resolution"],
+    );
 }
 
 #[test]
 fn non_positive_index_of_refraction_is_refused() {
-    let text = replace_once(
-        TINY,
+    expect_bad_edit(
         "resolution = [16, 16]",
         "resolution = [16, 16]\nn_below = -1.333",
+        "n_below = -1.333",
+        &["n_below"],
     );
-    let line = text.lines().position(|l| l.starts_with("n_below")).unwrap() + 1;
-    expect_bad_input(&text, &["bad.toml", &format!(":{line}:"), "n_below"]);
 }
 
 #[test]
 fn nan_is_refused() {
-    let text = replace_once(TINY, "amplitude_m = 0.02", "amplitude_m = nan");
-    let line = text
-        .lines()
-        .position(|l| l.contains("amplitude_m = nan"))
-        .unwrap()
-        + 1;
-    expect_bad_input(&text, &["bad.toml", &format!(":{line}:"), "amplitude_m"]);
+    expect_bad_edit(
+        "amplitude_m = 0.02",
+        "amplitude_m = nan",
+        "amplitude_m = nan",
+        &["amplitude_m"],
+    );
 }
 
 #[test]
