@@ -15,6 +15,20 @@ fn snell(args: &[&str], cwd: &Path) -> Output {
         .expect("the snell binary runs")
 }
 
+/// `snell render SCENE --out OUT --size 64x36 EXTRA...`, run in `cwd`.
+fn render_small(scene: &Path, out: &Path, extra: &[&str], cwd: &Path) -> Output {
+    let mut args = vec![
+        "render",
+        scene.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--size",
+        "64x36",
+    ];
+    args.extend_from_slice(extra);
+    snell(&args, cwd)
+}
+
 fn write_scene(dir: &Path, name: &str, text: &str) -> PathBuf {
     let path = dir.join(name);
     std::fs::write(&path, text).unwrap();
@@ -45,17 +59,7 @@ fn expect_bad_input(scene_text: &str, needles: &[&str]) {
     let dir = tempfile::tempdir().unwrap();
     let scene = write_scene(dir.path(), "bad.toml", scene_text);
     let out = dir.path().join("out");
-    let output = snell(
-        &[
-            "render",
-            scene.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-            "--size",
-            "64x36",
-        ],
-        dir.path(),
-    );
+    let output = render_small(&scene, &out, &[], dir.path());
     let stderr = String::from_utf8_lossy(&output.stderr);
     assert_eq!(
         output.status.code(),
@@ -159,17 +163,7 @@ fn output_path_through_a_regular_file_is_refused() {
     let scene = write_scene(dir.path(), "tiny.toml", TINY);
     std::fs::write(dir.path().join("blocker"), "a regular file").unwrap();
     let out = dir.path().join("blocker").join("frames");
-    let output = snell(
-        &[
-            "render",
-            scene.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-            "--size",
-            "64x36",
-        ],
-        dir.path(),
-    );
+    let output = render_small(&scene, &out, &[], dir.path());
     let stderr = String::from_utf8_lossy(&output.stderr);
     assert_eq!(output.status.code(), Some(2), "stderr:\n{stderr}");
     assert!(
@@ -208,19 +202,7 @@ fn render_writes_frames_and_report() {
     let dir = tempfile::tempdir().unwrap();
     let scene = write_scene(dir.path(), "tiny.toml", TINY);
     let out = dir.path().join("frames");
-    let output = snell(
-        &[
-            "render",
-            scene.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-            "--size",
-            "64x36",
-            "--frames",
-            "2-3",
-        ],
-        dir.path(),
-    );
+    let output = render_small(&scene, &out, &["--frames", "2-3"], dir.path());
     assert!(
         output.status.success(),
         "{}",

@@ -31,6 +31,7 @@ fn same_frame_twice_gives_identical_pixels_and_alone_equals_in_sequence() {
     let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/pool.toml");
     let job = RenderJob::prepare(&scene).unwrap();
     let mut renderer = Renderer::new().unwrap();
+    job.upload_textures(&mut renderer).unwrap();
     let (w, h) = (192, 108);
     let (first_cpu, first) = job.render_frame(&mut renderer, 12, w, h).unwrap();
     let (second_cpu, second) = job.render_frame(&mut renderer, 12, w, h).unwrap();
@@ -46,7 +47,6 @@ fn same_frame_twice_gives_identical_pixels_and_alone_equals_in_sequence() {
     assert_eq!(first_cpu.counts, second_cpu.counts);
 
     // In a sequence: frame 11 then frame 12 with frame 11's tracking carried over.
-    job.upload_textures(&mut renderer).unwrap();
     let eleven = job
         .refract(11, w, h, job.previous_tracking(11, w, h).unwrap().as_ref())
         .unwrap();

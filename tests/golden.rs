@@ -58,6 +58,7 @@ fn pool_golden_frames() {
     let job = RenderJob::prepare(&scene).expect("pool.toml loads");
     let mut renderer =
         Renderer::new().expect("a wgpu adapter (Mesa's llvmpipe or lavapipe at least)");
+    job.upload_textures(&mut renderer).expect("textures upload");
     let mut failures = Vec::new();
     let mut first_image = None;
     for frame in [1, 24, 48] {

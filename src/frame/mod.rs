@@ -303,7 +303,8 @@ impl RenderJob {
         Ok(())
     }
 
-    /// Renders a single frame alone (popping judged against frame - 1 recomputed).
+    /// Renders a single frame alone (popping judged against frame - 1 recomputed). Textures must
+    /// have been set once with [`Self::upload_textures`]: they do not change between frames.
     pub fn render_frame(
         &self,
         renderer: &mut Renderer,
@@ -311,7 +312,6 @@ impl RenderJob {
         width: u32,
         height: u32,
     ) -> Result<(RefractedFrame, RenderedFrame), SnellError> {
-        self.upload_textures(renderer)?;
         let previous = self.previous_tracking(frame, width, height)?;
         let mut refracted = self.refract(frame, width, height, previous.as_ref())?;
         let rendered = self.render_refracted(renderer, &mut refracted, width, height)?;

@@ -149,16 +149,20 @@ mod tests {
         assert_eq!(schlick_reflectance(steep, Vec3::Y, 1.333, 1.0), 1.0);
     }
 
-    #[test]
-    fn refracted_sun_obeys_snell() {
-        let light = lighting();
-        let water = WaterOptics {
+    fn pool_water() -> WaterOptics {
+        WaterOptics {
             n_above: 1.0,
             n_below: 1.333,
             absorption_per_m: Vec3::new(0.4, 0.1, 0.05),
             scatter_color_linear: Vec3::new(0.0, 0.05, 0.08),
             mean_level_m: 0.0,
-        };
+        }
+    }
+
+    #[test]
+    fn refracted_sun_obeys_snell() {
+        let light = lighting();
+        let water = pool_water();
         let in_water = sun_direction_in_water(&light, &water).unwrap();
         let sin_above = (1.0 - light.sun_direction.y.powi(2)).sqrt();
         let sin_below = (1.0 - in_water.y.powi(2)).sqrt();
@@ -175,13 +179,7 @@ mod tests {
     #[test]
     fn deep_view_path_shows_the_scatter_colour_and_zero_path_the_lit_colour() {
         let light = lighting();
-        let water = WaterOptics {
-            n_above: 1.0,
-            n_below: 1.333,
-            absorption_per_m: Vec3::new(0.4, 0.1, 0.05),
-            scatter_color_linear: Vec3::new(0.0, 0.05, 0.08),
-            mean_level_m: 0.0,
-        };
+        let water = pool_water();
         let deep = shade_under(
             Vec3::ONE,
             Vec3::Y,
