@@ -5,6 +5,7 @@
 //! 0. [`scene`]      — scene file (TOML) -> validated [`scene::Scene`]; built-in primitives -> world meshes, textures.
 //! 1. [`timeline`]   — frame <-> time, camera keyframe tracks.
 //! 2. [`water`]      — the water membrane at time t: analytic waves, height field, triangulated grid.
+//!    [`sim`]        — the ripples characters make (damped wave equation), stepped and checkpointed.
 //! 3. [`refraction`] — refraction rays, cells, sight-facet search, virtual vertices, flags (pure CPU, rayon).
 //! 4. [`gpu`]        — wgpu passes: true geometry, stencil of visible water, virtual geometry, Fresnel sky.
 //! 5. [`output`]     — multi-layer OpenEXR frames, per-frame report, tone-mapped previews, image comparison.
@@ -21,6 +22,7 @@ pub mod mesh;
 pub mod output;
 pub mod refraction;
 pub mod scene;
+pub mod sim;
 pub mod timeline;
 pub mod water;
 

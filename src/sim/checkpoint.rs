@@ -1,0 +1,292 @@
+//! Simulation checkpoints on disk: the ripple state after each frame, in a folder named for the
+//! scene and a key (a BLAKE3 hash of the scene file, every asset it references and every setting
+//! that changes the simulation), next to the rendered frames.
+//!
+//! A checkpoint is used only when its folder's key, its own header key, frame and grid size all
+//! match and its trailing hash checks, so a stale one (the scene or an asset changed) or a torn one
+//! is never read; stale folders of the same scene are deleted when the store opens. Files are
+//! written to a temporary name and renamed, so a crash leaves whole checkpoints or none.
+
+use std::fs;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use super::ripples::{RippleSettings, RippleState};
+
+const MAGIC: &[u8; 8] = b"SNELLRIP";
+/// Bumped whenever the file layout changes.
+const FORMAT_VERSION: u32 = 1;
+/// The folder, under the output folder, that holds every scene's checkpoints.
+pub const CHECKPOINT_DIR: &str = ".snell-sim";
+
+/// The inputs a simulation depends on, hashed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct CheckpointKey(pub [u8; 32]);
+
+impl CheckpointKey {
+    pub fn hex(&self) -> String {
+        self.0.iter().map(|b| format!("{b:02x}")).collect()
+    }
+}
+
+/// Builds a [`CheckpointKey`]: feed it every input, in a fixed order.
+pub struct KeyHasher(blake3::Hasher);
+
+impl KeyHasher {
+    pub fn new(what: &str) -> Self {
+        let mut hasher = blake3::Hasher::new();
+        hasher.update(what.as_bytes());
+        hasher.update(&FORMAT_VERSION.to_le_bytes());
+        KeyHasher(hasher)
+    }
+    /// A labelled input: the label and length go in first so inputs cannot run into each other.
+    pub fn input(&mut self, label: &str, bytes: &[u8]) -> &mut Self {
+        self.0.update(&(label.len() as u64).to_le_bytes());
+        self.0.update(label.as_bytes());
+        self.0.update(&(bytes.len() as u64).to_le_bytes());
+        self.0.update(bytes);
+        self
+    }
+    pub fn finish(&self) -> CheckpointKey {
+        CheckpointKey(*self.0.finalize().as_bytes())
+    }
+}
+
+/// Why checkpoints could not be used or written.
+#[derive(Debug, thiserror::Error)]
+pub enum CheckpointError {
+    #[error("cannot create the simulation checkpoint folder {path}: {source}")]
+    CreateDir {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("cannot write the simulation checkpoint {path}: {source}")]
+    Write {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+}
+
+/// One scene's checkpoint folder.
+#[derive(Debug)]
+pub struct CheckpointStore {
+    dir: PathBuf,
+    key: CheckpointKey,
+    /// Stale folders of the same scene removed when the store opened.
+    pub removed_stale: Vec<PathBuf>,
+}
+
+impl CheckpointStore {
+    /// Opens (creating) `<out_dir>/.snell-sim/<scene_stem>-<key>/`, deleting any other folder of
+    /// the same scene stem there: those belong to an older version of the scene or its assets.
+    pub fn open(out_dir: &Path, scene_stem: &str, key: CheckpointKey) -> Result<Self, CheckpointError> {
+        let root = out_dir.join(CHECKPOINT_DIR);
+        let name = format!("{scene_stem}-{}", &key.hex()[..32]);
+        let dir = root.join(&name);
+        fs::create_dir_all(&dir).map_err(|source| CheckpointError::CreateDir {
+            path: dir.clone(),
+            source,
+        })?;
+        let mut removed_stale = Vec::new();
+        if let Ok(entries) = fs::read_dir(&root) {
+            for entry in entries.flatten() {
+                let other = entry.file_name().to_string_lossy().to_string();
+                let same_scene = other
+                    .rsplit_once('-')
+                    .is_some_and(|(stem, hash)| stem == scene_stem && hash.len() == 32);
+                if same_scene && other != name && fs::remove_dir_all(entry.path()).is_ok() {
+                    removed_stale.push(entry.path());
+                }
+            }
+        }
+        Ok(CheckpointStore {
+            dir,
+            key,
+            removed_stale,
+        })
+    }
+
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    fn path_of(&self, frame: u32) -> PathBuf {
+        self.dir.join(format!("ripples-{frame:06}.bin"))
+    }
+
+    /// The latest frame in `first..=frame` with a valid checkpoint, and its state.
+    pub fn latest_at_or_before(
+        &self,
+        frame: u32,
+        first: u32,
+        settings: &RippleSettings,
+    ) -> Option<(u32, RippleState)> {
+        let mut frames: Vec<u32> = fs::read_dir(&self.dir)
+            .ok()?
+            .flatten()
+            .filter_map(|entry| {
+                let name = entry.file_name().to_string_lossy().to_string();
+                name.strip_prefix("ripples-")?
+                    .strip_suffix(".bin")?
+                    .parse::<u32>()
+                    .ok()
+            })
+            .filter(|&f| f >= first && f <= frame)
+            .collect();
+        frames.sort_unstable_by(|a, b| b.cmp(a));
+        frames
+            .into_iter()
+            .find_map(|f| self.load(f, settings).map(|state| (f, state)))
+    }
+
+    /// The checkpoint of `frame`, if present and valid for this key and grid.
+    pub fn load(&self, frame: u32, settings: &RippleSettings) -> Option<RippleState> {
+        let bytes = fs::read(self.path_of(frame)).ok()?;
+        decode(&bytes, self.key, frame, settings)
+    }
+
+    pub fn has(&self, frame: u32) -> bool {
+        self.path_of(frame).is_file()
+    }
+
+    /// Writes the checkpoint of `frame` atomically (temporary file, then rename).
+    pub fn save(&self, frame: u32, state: &RippleState) -> Result<(), CheckpointError> {
+        let path = self.path_of(frame);
+        let temporary = self.dir.join(format!(".ripples-{frame:06}.bin.partial"));
+        let bytes = encode(self.key, frame, state);
+        let write = || -> std::io::Result<()> {
+            let mut file = fs::File::create(&temporary)?;
+            file.write_all(&bytes)?;
+            file.sync_data()?;
+            fs::rename(&temporary, &path)
+        };
+        write().map_err(|source| {
+            let _ = fs::remove_file(&temporary);
+            CheckpointError::Write { path, source }
+        })
+    }
+}
+
+fn encode(key: CheckpointKey, frame: u32, state: &RippleState) -> Vec<u8> {
+    let s = &state.settings;
+    let mut bytes = Vec::with_capacity(64 + 8 * state.height_m.len() + 32);
+    bytes.extend_from_slice(MAGIC);
+    bytes.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
+    bytes.extend_from_slice(&key.0);
+    bytes.extend_from_slice(&frame.to_le_bytes());
+    bytes.extend_from_slice(&s.nodes_x.to_le_bytes());
+    bytes.extend_from_slice(&s.nodes_z.to_le_bytes());
+    for value in state.height_m.iter().chain(&state.velocity_m_per_s) {
+        bytes.extend_from_slice(&value.to_le_bytes());
+    }
+    let check = blake3::hash(&bytes);
+    bytes.extend_from_slice(check.as_bytes());
+    bytes
+}
+
+fn decode(
+    bytes: &[u8],
+    key: CheckpointKey,
+    frame: u32,
+    settings: &RippleSettings,
+) -> Option<RippleState> {
+    let nodes = settings.node_count();
+    let header = 8 + 4 + 32 + 4 + 4 + 4;
+    if bytes.len() != header + 8 * nodes + 32 {
+        return None;
+    }
+    let (body, check) = bytes.split_at(bytes.len() - 32);
+    if blake3::hash(body).as_bytes() != check {
+        return None;
+    }
+    let u32_at = |at: usize| u32::from_le_bytes(body[at..at + 4].try_into().unwrap());
+    if &body[..8] != MAGIC
+        || u32_at(8) != FORMAT_VERSION
+        || body[12..44] != key.0
+        || u32_at(44) != frame
+        || u32_at(48) != settings.nodes_x
+        || u32_at(52) != settings.nodes_z
+    {
+        return None;
+    }
+    let values: Vec<f32> = body[header..]
+        .chunks_exact(4)
+        .map(|c| f32::from_le_bytes(c.try_into().unwrap()))
+        .collect();
+    let (height_m, velocity_m_per_s) = values.split_at(nodes);
+    Some(RippleState {
+        settings: *settings,
+        height_m: height_m.to_vec(),
+        velocity_m_per_s: velocity_m_per_s.to_vec(),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sim::ripples::Border;
+
+    fn settings() -> RippleSettings {
+        RippleSettings {
+            nodes_x: 5,
+            nodes_z: 3,
+            min_x: 0.0,
+            min_z: 0.0,
+            spacing_m: 0.1,
+            speed_m_per_s: 0.5,
+            damping_per_s: 0.1,
+            border: Border::Reflect,
+            sponge_nodes: 0,
+            sponge_damping_per_s: 0.0,
+        }
+    }
+
+    fn key(text: &str) -> CheckpointKey {
+        KeyHasher::new("test").input("scene", text.as_bytes()).finish()
+    }
+
+    #[test]
+    fn round_trip_and_every_mismatch_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let store = CheckpointStore::open(dir.path(), "pool", key("a")).unwrap();
+        let mut state = RippleState::calm(settings());
+        state.height_m[3] = 0.25;
+        state.velocity_m_per_s[7] = -1.5e-3;
+        store.save(12, &state).unwrap();
+        assert_eq!(store.load(12, &settings()), Some(state.clone()));
+        assert_eq!(store.latest_at_or_before(20, 1, &settings()).map(|(f, _)| f), Some(12));
+        assert_eq!(store.latest_at_or_before(11, 1, &settings()), None);
+        // Another grid size: refused.
+        let mut other = settings();
+        other.nodes_x = 4;
+        assert_eq!(store.load(12, &other), None);
+        // A torn (truncated) or corrupted file: refused.
+        let path = store.path_of(12);
+        let bytes = fs::read(&path).unwrap();
+        fs::write(&path, &bytes[..bytes.len() - 5]).unwrap();
+        assert_eq!(store.load(12, &settings()), None);
+        let mut flipped = bytes.clone();
+        flipped[70] ^= 1;
+        fs::write(&path, &flipped).unwrap();
+        assert_eq!(store.load(12, &settings()), None);
+        // A file renamed to another frame: refused (the frame is in the header).
+        fs::write(&path, &bytes).unwrap();
+        fs::copy(&path, store.path_of(13)).unwrap();
+        assert_eq!(store.load(13, &settings()), None);
+        assert!(store.load(12, &settings()).is_some());
+    }
+
+    #[test]
+    fn a_changed_key_opens_a_new_folder_and_deletes_the_stale_one() {
+        let dir = tempfile::tempdir().unwrap();
+        let old = CheckpointStore::open(dir.path(), "pool", key("a")).unwrap();
+        old.save(5, &RippleState::calm(settings())).unwrap();
+        let other_scene = CheckpointStore::open(dir.path(), "fox", key("a")).unwrap();
+        other_scene.save(5, &RippleState::calm(settings())).unwrap();
+        let new = CheckpointStore::open(dir.path(), "pool", key("b")).unwrap();
+        assert_eq!(new.removed_stale, vec![old.dir().to_path_buf()]);
+        assert!(!old.dir().exists());
+        assert!(other_scene.dir().exists(), "other scenes' checkpoints are kept");
+        assert_eq!(new.latest_at_or_before(10, 1, &settings()), None);
+    }
+}
