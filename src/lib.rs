@@ -3,6 +3,7 @@
 //!
 //! The stages, in the order a frame flows through them:
 //! 0. [`scene`]      — scene file (TOML) -> validated [`scene::Scene`]; built-in primitives -> world meshes, textures.
+//!    [`character`] — glTF characters: load, sample an animation, skin (pure CPU, rayon) -> world meshes.
 //! 1. [`timeline`]   — frame <-> time, camera keyframe tracks.
 //! 2. [`water`]      — the water membrane at time t: analytic waves, height field, triangulated grid.
 //! 3. [`refraction`] — refraction rays, cells, sight-facet search, virtual vertices, flags (pure CPU, rayon).
@@ -13,6 +14,7 @@
 //! and by the tests.
 
 pub mod camera;
+pub mod character;
 pub mod color;
 pub mod draw;
 pub mod frame;
