@@ -3,6 +3,7 @@
 //!
 //! The stages, in the order a frame flows through them:
 //! 0. [`scene`]      — scene file (TOML) -> validated [`scene::Scene`]; built-in primitives -> world meshes, textures.
+//!    [`character`] — glTF characters: load, sample an animation, skin (pure CPU, rayon) -> world meshes.
 //! 1. [`timeline`]   — frame <-> time, camera keyframe tracks.
 //! 2. [`water`]      — the water membrane at time t: analytic waves, height field, triangulated grid.
 //!    [`sim`]        — the ripples characters make (damped wave equation), stepped and checkpointed.
@@ -14,6 +15,7 @@
 //! and by the tests.
 
 pub mod camera;
+pub mod character;
 pub mod color;
 pub mod draw;
 pub mod frame;
