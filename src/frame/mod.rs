@@ -4,6 +4,7 @@
 //! render exactly the same way.
 
 pub mod bench;
+pub mod characters;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -22,6 +23,7 @@ use crate::refraction::virtual_geometry::{
 };
 use crate::scene::{Scene, SceneError};
 use crate::timeline::{CameraTrack, Timeline};
+use crate::sim::SumHeightField;
 use crate::water::{build_membrane, HeightField, Membrane, Wave, WaveField};
 
 /// Everything that can stop a render, sorted into "your input is wrong" (exit 2) and the rest.
@@ -36,6 +38,9 @@ pub enum SnellError {
     /// A command-line argument that cannot be used; the message says which and what to write.
     #[error("{0}")]
     Argument(String),
+    /// Simulation checkpoints cannot be written where the output goes.
+    #[error("{0}")]
+    Checkpoint(#[from] crate::sim::CheckpointError),
     /// The scene is valid as a file but a frame cannot be rendered from it.
     #[error("{scene}: frame {frame}: {problem}")]
     Frame {
@@ -49,7 +54,10 @@ impl SnellError {
     /// Whether the user's input (scene, arguments, output location) is at fault: exit code 2.
     pub fn is_bad_input(&self) -> bool {
         match self {
-            SnellError::Scene(_) | SnellError::Argument(_) | SnellError::Frame { .. } => true,
+            SnellError::Scene(_)
+            | SnellError::Argument(_)
+            | SnellError::Frame { .. }
+            | SnellError::Checkpoint(_) => true,
             SnellError::Output(error) => error.is_bad_input(),
             SnellError::Gpu(_) => false,
         }
@@ -133,7 +141,10 @@ pub struct RenderJob {
     pub textures: Vec<Texture>,
     pub waves: WaveField,
     pub camera_track: CameraTrack,
-    /// Heights the refraction search must cover: every object vertex that can be under water.
+    /// Characters (posed every frame) and the ripples they make.
+    pub dynamics: characters::Dynamics,
+    /// Heights the refraction search must cover for the static objects (characters and ripples
+    /// widen it per frame).
     query_y_range: (f32, f32),
 }
 
@@ -151,7 +162,9 @@ impl RenderJob {
     }
 
     pub fn from_scene(scene: Scene) -> Result<Self, SnellError> {
-        let (objects, textures) = scene.build_objects()?;
+        let (objects, mut textures) = scene.build_objects()?;
+        let loaded = characters::load_characters(&scene, &mut textures)?;
+        let dynamics = characters::Dynamics::new(&scene, loaded)?;
         let waves = WaveField {
             level_m: scene.water.level_m,
             waves: scene.water.waves.iter().map(wave_from_spec).collect(),
@@ -169,8 +182,15 @@ impl RenderJob {
             textures,
             waves,
             camera_track,
+            dynamics,
             query_y_range: (bottom, top),
         })
+    }
+
+    /// Reads and writes simulation checkpoints under `out_dir` from now on (a note when stale
+    /// checkpoints of this scene were deleted).
+    pub fn use_checkpoints(&self, out_dir: &Path) -> Result<Option<String>, SnellError> {
+        self.dynamics.use_checkpoints(out_dir, &self.scene.name)
     }
 
     pub fn scene_name(&self) -> &str {
@@ -198,7 +218,35 @@ impl RenderJob {
         let mut stage_secs = BTreeMap::new();
         let time_secs = self.scene.timeline.time_secs(frame);
         let camera = self.camera_track.sample(time_secs);
-        let surface = self.waves.at(time_secs);
+        let clock = Instant::now();
+        let ripples = self.dynamics.ripples_at(&self.scene, &self.waves, frame)?;
+        stage_secs.insert("ripples".to_string(), clock.elapsed().as_secs_f64());
+        let waves_now = self.waves.at(time_secs);
+        let surface = SumHeightField {
+            base: &waves_now,
+            ripples: ripples.as_ref().map(|state| state.field()),
+        };
+        let clock = Instant::now();
+        let posed: Vec<Object> = self
+            .dynamics
+            .characters
+            .iter()
+            .flat_map(|c| c.objects(time_secs))
+            .collect();
+        let objects: std::borrow::Cow<'_, [Object]> = if posed.is_empty() {
+            std::borrow::Cow::Borrowed(&self.objects)
+        } else {
+            std::borrow::Cow::Owned(self.objects.iter().cloned().chain(posed).collect())
+        };
+        stage_secs.insert("skinning".to_string(), clock.elapsed().as_secs_f64());
+        let ripple_reach_m = ripples.as_ref().map_or(0.0, |r| r.max_abs_height_m());
+        let query_y_range = (
+            objects
+                .iter()
+                .flat_map(|o| o.mesh.positions.iter().map(|p| p.y))
+                .fold(self.query_y_range.0, f32::min),
+            self.query_y_range.1 + ripple_reach_m,
+        );
         let water_at_eye = surface.height(camera.eye.x as f64, camera.eye.z as f64);
         if (camera.eye.y as f64) <= water_at_eye + 0.01 {
             return Err(SnellError::Frame {
@@ -223,12 +271,12 @@ impl RenderJob {
             n_below: self.scene.water.n_below as f32,
             cell_mode: CellMode::EqualT,
         };
-        let field = RefractionField::build(&membrane, &surface, setup, self.query_y_range);
+        let field = RefractionField::build(&membrane, &surface, setup, query_y_range);
         let request = VirtualGeometryRequest {
             field: &field,
             camera,
             image_size: (width, height),
-            objects: &self.objects,
+            objects: &objects,
             mean_level_m: self.waves.level_m as f32,
             search: ImageSearch::Accelerated,
         };
@@ -241,8 +289,7 @@ impl RenderJob {
             under_vertices: geometry.under_vertices,
             membrane_vertices: membrane_vertices(&membrane),
             membrane_indices: membrane.triangles.iter().flatten().copied().collect(),
-            materials: self
-                .objects
+            materials: objects
                 .iter()
                 .map(|o| DrawMaterial {
                     texture: o.material.texture,
@@ -329,6 +376,9 @@ impl RenderJob {
         progress: bool,
     ) -> Result<RenderSummary, SnellError> {
         crate::output::ensure_output_dir(out_dir)?;
+        if let Some(note) = self.use_checkpoints(out_dir)? {
+            eprintln!("note: {note}");
+        }
         let mut renderer = Renderer::new()?;
         self.upload_textures(&mut renderer)?;
         let report = crate::output::report::ReportWriter::create(out_dir)?;

@@ -20,6 +20,7 @@ pub(crate) struct RawScene {
     #[serde(default)]
     pub sun: RawSun,
     pub object: Option<Vec<RawObject>>,
+    pub character: Option<Vec<RawCharacter>>,
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -53,6 +54,55 @@ pub(crate) struct RawWater {
     pub absorption_per_m: Option<[f64; 3]>,
     pub scatter_color: Option<[f64; 3]>,
     pub wave: Option<Vec<RawWave>>,
+    pub ripples: Option<RawRipples>,
+}
+
+/// `[water.ripples]`: the simulated ripples characters make.
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawRipples {
+    pub enabled: Option<bool>,
+    /// Grid nodes along x and z.
+    pub resolution: Option<[i64; 2]>,
+    pub speed_m_per_s: Option<f64>,
+    pub damping_per_s: Option<f64>,
+    pub border: Option<String>,
+    pub sponge_width_m: Option<f64>,
+    pub strength: Option<f64>,
+    pub coupling_depth_m: Option<f64>,
+}
+
+/// `[[character]]`: a skinned, animated glTF model walking a root path.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawCharacter {
+    pub name: Option<String>,
+    pub file: String,
+    pub animation: Option<RawAnimation>,
+    pub speed: Option<f64>,
+    pub time_offset_secs: Option<f64>,
+    pub playback: Option<String>,
+    pub scale: Option<f64>,
+    pub tint: Option<[f64; 3]>,
+    pub path: Option<Vec<RawPathKey>>,
+}
+
+/// An animation by name or by index.
+#[derive(Debug, Deserialize)]
+#[serde(untagged)]
+pub(crate) enum RawAnimation {
+    Index(i64),
+    Name(String),
+}
+
+/// `[[character.path]]`: where the character's root is at a time, and which way it faces.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawPathKey {
+    pub frame: Option<f64>,
+    pub time_secs: Option<f64>,
+    pub position: [f64; 3],
+    pub heading_deg: Option<f64>,
 }
 
 #[derive(Debug, Deserialize)]

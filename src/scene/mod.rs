@@ -25,7 +25,7 @@ use toml::de::{DeTable, DeValue};
 pub use error::SceneError;
 use error::{line_column_of, KeyPath, SourceMap};
 use primitives::{pool_meshes, PoolDims};
-pub use textures::TextureSpec;
+pub use textures::{SourceRef, TextureSpec};
 
 use crate::draw::{Lighting, WaterOptics};
 use crate::mesh::{Material, Mesh, Object, Texture};
@@ -45,7 +45,86 @@ pub struct Scene {
     pub water: WaterSpec,
     /// The static objects as described (meshes are built on demand by [`Scene::build_objects`]).
     pub objects: Arc<[ObjectSpec]>,
+    /// Skinned glTF characters (loaded by the frame stage, every frame posed anew).
+    pub characters: Arc<[CharacterSpec]>,
     lighting: Lighting,
+}
+
+/// Which animation of a glTF file a character plays.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum AnimationChoice {
+    Name(String),
+    Index(usize),
+}
+
+/// What a character does past the end of its animation.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Playback {
+    Loop,
+    Clamp,
+}
+
+/// A root-path keyframe: where the character's origin is and which way it faces.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PathKey {
+    pub time_secs: f64,
+    pub position_m: [f64; 3],
+    /// The direction the model's +z (glTF forward) faces, degrees from +z toward +x.
+    pub heading_deg: f64,
+}
+
+/// One `[[character]]` of the scene, validated (the file exists; its contents are checked when
+/// the frame stage loads it, and errors then still point here through the locations).
+#[derive(Clone, Debug, PartialEq)]
+pub struct CharacterSpec {
+    pub name: String,
+    /// Resolved against the scene file's folder.
+    pub file: PathBuf,
+    /// `None`: the file's first animation, or the rest pose when it has none.
+    pub animation: Option<AnimationChoice>,
+    /// Animation seconds per timeline second.
+    pub speed: f64,
+    /// Added to the timeline time before `speed` scales it.
+    pub time_offset_secs: f64,
+    pub playback: Playback,
+    /// Uniform scale from the file's units to metres.
+    pub scale: f64,
+    /// Multiplies the file's base colour (sRGB components).
+    pub tint_srgb: [f64; 3],
+    /// Strictly increasing in time; at least one key.
+    pub path: Vec<PathKey>,
+    /// Where the scene names the file and the animation (the table when no animation is named),
+    /// so errors found when the file is loaded still point into the scene file.
+    pub file_source: SourceRef,
+    pub animation_source: SourceRef,
+}
+
+impl SourceRef {
+    /// A scene error at this place.
+    pub fn error(&self, problem: impl Into<String>, fix: impl Into<String>) -> SceneError {
+        SceneError::Invalid {
+            file: self.file.clone(),
+            line: self.line,
+            column: self.column,
+            key: self.key.clone(),
+            problem: problem.into(),
+            fix: fix.into(),
+        }
+    }
+}
+
+/// `[water.ripples]`, validated.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RippleSpec {
+    pub enabled: bool,
+    /// Grid nodes along x and z.
+    pub nodes: [u32; 2],
+    pub speed_m_per_s: f64,
+    pub damping_per_s: f64,
+    pub border: crate::sim::Border,
+    pub sponge_width_m: f64,
+    pub strength: f64,
+    pub coupling_depth_m: f64,
 }
 
 /// One height wave of the water surface, as the scene states it; the water stage turns these into
@@ -84,6 +163,7 @@ pub struct WaterSpec {
     pub absorption_per_m: [f64; 3],
     pub scatter_color_linear: [f64; 3],
     pub waves: Vec<WaveSpec>,
+    pub ripples: RippleSpec,
 }
 
 impl WaterSpec {
@@ -236,6 +316,29 @@ impl Scene {
             });
         }
         Ok((objects, baked.into_iter().map(|(_, b)| b.texture).collect()))
+    }
+
+    /// Every image file the scene's textures read (for checkpoint keys).
+    pub fn image_files(&self) -> Vec<PathBuf> {
+        let mut files = Vec::new();
+        for object in self.objects.iter() {
+            let mut specs = vec![&object.texture];
+            if let ShapeSpec::Pool {
+                floor_texture,
+                deck_texture,
+                ..
+            } = &object.shape
+            {
+                specs.push(floor_texture);
+                specs.push(deck_texture);
+            }
+            for spec in specs {
+                if let TextureSpec::Image(image) = spec {
+                    files.push(image.path.clone());
+                }
+            }
+        }
+        files
     }
 
     /// Counts of what the scene builds (meshes are built, textures are not).

@@ -7,10 +7,16 @@ use std::sync::Arc;
 use glam::Vec3;
 
 use super::error::{KeyPath, SourceMap};
-use super::format::{RawCameraKey, RawObject, RawScene, RawTexture, RawWater};
+use super::error::line_column_of;
+use super::format::{
+    RawAnimation, RawCameraKey, RawCharacter, RawObject, RawRipples, RawScene, RawTexture, RawWater,
+};
 use super::primitives::DEFAULT_MAX_EDGE_M;
 use super::textures::{srgb_to_linear3, ImageSpec, LaneSpec, SourceRef, TextureSpec, TilesSpec};
-use super::{ObjectSpec, Scene, SceneError, ShapeSpec, WaterSpec, WaveSpec};
+use super::{
+    AnimationChoice, CharacterSpec, ObjectSpec, PathKey, Playback, RippleSpec, Scene, SceneError,
+    ShapeSpec, WaterSpec, WaveSpec,
+};
 use crate::draw::Lighting;
 use crate::timeline::{CameraKey, Timeline};
 
@@ -39,6 +45,17 @@ const DEFAULT_SUN_INTENSITY: f64 = 1.0;
 /// The real sun's angular diameter.
 const DEFAULT_SUN_SIZE_DEG: f64 = 0.53;
 const DEFAULT_FOV_DEG: f64 = 50.0;
+/// Ripple grid nodes along the water's longer side: ~4 cm cells over a 10 m pool, fine enough
+/// for the ripples a wading leg makes (wavelengths of a few cells and up).
+const DEFAULT_RIPPLE_NODES: i64 = 256;
+const MAX_RIPPLE_NODES: i64 = 4096;
+/// Short gravity-capillary ripples (wavelength ~10 cm) travel at roughly half a metre a second.
+const DEFAULT_RIPPLE_SPEED_M_PER_S: f64 = 0.5;
+/// Ripples from a wading animal die down within a few seconds.
+const DEFAULT_RIPPLE_DAMPING_PER_S: f64 = 0.5;
+const DEFAULT_SPONGE_WIDTH_M: f64 = 0.5;
+/// A body this far under the surface stirs it e times less than one at the surface.
+const DEFAULT_COUPLING_DEPTH_M: f64 = 0.25;
 /// Finer tessellation than this would build millions of vertices per square metre.
 const MIN_MAX_EDGE_M: f64 = 0.01;
 
@@ -64,7 +81,8 @@ pub(crate) fn validate(raw: RawScene, map: &SourceMap<'_>) -> Result<Scene> {
     };
 
     let timeline = timeline(&raw, map)?;
-    let water = water(&raw.water, map)?;
+    let has_characters = raw.character.as_ref().is_some_and(|c| !c.is_empty());
+    let water = water(&raw.water, has_characters, map)?;
     let camera_keys = camera_keys(raw.camera.as_deref(), &timeline, &water, map)?;
     let lighting = lighting(&raw, map)?;
     let objects = match &raw.object {
@@ -75,6 +93,13 @@ pub(crate) fn validate(raw: RawScene, map: &SourceMap<'_>) -> Result<Scene> {
             .collect::<Result<Vec<_>>>()?,
         None => vec![default_pool(max_edge_m)],
     };
+    let characters = raw
+        .character
+        .iter()
+        .flatten()
+        .enumerate()
+        .map(|(i, c)| character(c, &root.key("character").index(i), i, &timeline, map))
+        .collect::<Result<Vec<_>>>()?;
 
     Ok(Scene {
         name,
@@ -83,6 +108,7 @@ pub(crate) fn validate(raw: RawScene, map: &SourceMap<'_>) -> Result<Scene> {
         camera_keys,
         water,
         objects: Arc::from(objects),
+        characters: Arc::from(characters),
         lighting,
     })
 }
@@ -141,7 +167,7 @@ fn timeline(raw: &RawScene, map: &SourceMap<'_>) -> Result<Timeline> {
     })
 }
 
-fn water(raw: &RawWater, map: &SourceMap<'_>) -> Result<WaterSpec> {
+fn water(raw: &RawWater, has_characters: bool, map: &SourceMap<'_>) -> Result<WaterSpec> {
     let path = KeyPath::root().key("water");
     let min_xz = raw.min.unwrap_or(DEFAULT_WATER_MIN_XZ);
     let max_xz = raw.max.unwrap_or(DEFAULT_WATER_MAX_XZ);
@@ -266,6 +292,212 @@ fn water(raw: &RawWater, map: &SourceMap<'_>) -> Result<WaterSpec> {
         absorption_per_m,
         scatter_color_linear: srgb_to_linear3(scatter),
         waves,
+        ripples: ripples(raw.ripples.as_ref(), has_characters, min_xz, max_xz, map)?,
+    })
+}
+
+/// Ripples are on when the scene has characters to make them, unless `enabled = false`.
+fn ripples(
+    raw: Option<&RawRipples>,
+    has_characters: bool,
+    min_xz: [f64; 2],
+    max_xz: [f64; 2],
+    map: &SourceMap<'_>,
+) -> Result<RippleSpec> {
+    let path = KeyPath::root().key("water").key("ripples");
+    let default = RawRipples::default();
+    let raw = raw.unwrap_or(&default);
+    let (width_m, depth_m) = (max_xz[0] - min_xz[0], max_xz[1] - min_xz[1]);
+    // Square cells, DEFAULT_RIPPLE_NODES along the longer side.
+    let longer_m = width_m.max(depth_m);
+    let default_nodes = [
+        ((DEFAULT_RIPPLE_NODES - 1) as f64 * width_m / longer_m).round() as i64 + 1,
+        ((DEFAULT_RIPPLE_NODES - 1) as f64 * depth_m / longer_m).round() as i64 + 1,
+    ];
+    let nodes = raw.resolution.unwrap_or(default_nodes);
+    if nodes.iter().any(|&n| !(3..=MAX_RIPPLE_NODES).contains(&n)) {
+        return Err(map.error(
+            &path.key("resolution"),
+            format!(
+                "the ripple grid needs 3 to {MAX_RIPPLE_NODES} nodes in each direction (got [{}, {}])",
+                nodes[0], nodes[1]
+            ),
+            "set e.g. resolution = [256, 128]",
+        ));
+    }
+    let spacing = [
+        width_m / (nodes[0] - 1) as f64,
+        depth_m / (nodes[1] - 1) as f64,
+    ];
+    if (spacing[0] - spacing[1]).abs() > 0.01 * spacing[0].max(spacing[1]) {
+        return Err(map.error(
+            &path.key("resolution"),
+            format!(
+                "ripple cells must be square: these nodes make cells of {:.4} m along x and {:.4} m along z",
+                spacing[0], spacing[1]
+            ),
+            format!(
+                "choose nodes in the water's proportions, e.g. resolution = [{}, {}]",
+                default_nodes[0], default_nodes[1]
+            ),
+        ));
+    }
+    let speed_m_per_s = raw.speed_m_per_s.unwrap_or(DEFAULT_RIPPLE_SPEED_M_PER_S);
+    positive(speed_m_per_s, &path.key("speed_m_per_s"), "speed_m_per_s = 0.5", map)?;
+    let damping_per_s = raw.damping_per_s.unwrap_or(DEFAULT_RIPPLE_DAMPING_PER_S);
+    non_negative(damping_per_s, &path.key("damping_per_s"), "damping_per_s = 0.5", map)?;
+    let border = match raw.border.as_deref().unwrap_or("reflect") {
+        "reflect" => crate::sim::Border::Reflect,
+        "absorb" => crate::sim::Border::Absorb,
+        other => {
+            return Err(map.error(
+                &path.key("border"),
+                format!("unknown border {other:?}"),
+                "use \"reflect\" (walls) or \"absorb\" (open water)",
+            ))
+        }
+    };
+    let sponge_width_m = raw.sponge_width_m.unwrap_or(DEFAULT_SPONGE_WIDTH_M);
+    non_negative(sponge_width_m, &path.key("sponge_width_m"), "sponge_width_m = 0.5", map)?;
+    let strength = raw.strength.unwrap_or(1.0);
+    non_negative(strength, &path.key("strength"), "strength = 1.0", map)?;
+    let coupling_depth_m = raw.coupling_depth_m.unwrap_or(DEFAULT_COUPLING_DEPTH_M);
+    positive(coupling_depth_m, &path.key("coupling_depth_m"), "coupling_depth_m = 0.25", map)?;
+    Ok(RippleSpec {
+        enabled: raw.enabled.unwrap_or(has_characters),
+        nodes: [nodes[0] as u32, nodes[1] as u32],
+        speed_m_per_s,
+        damping_per_s,
+        border,
+        sponge_width_m,
+        strength,
+        coupling_depth_m,
+    })
+}
+
+fn character(
+    raw: &RawCharacter,
+    at: &KeyPath,
+    index: usize,
+    timeline: &Timeline,
+    map: &SourceMap<'_>,
+) -> Result<CharacterSpec> {
+    let location = |path: &KeyPath| {
+        let (line, column) = line_column_of(map.text, map.span_of(path).start);
+        SourceRef {
+            file: map.file.to_path_buf(),
+            line,
+            column,
+            key: path.to_string(),
+        }
+    };
+    let folder = map.file.parent().unwrap_or(Path::new(""));
+    let file = folder.join(&raw.file);
+    if !file.is_file() {
+        return Err(map.error(
+            &at.key("file"),
+            format!("cannot find the glTF file {} (resolved against the scene's folder)", file.display()),
+            "check the path; it is relative to the scene file",
+        ));
+    }
+    let animation = match &raw.animation {
+        None => None,
+        Some(RawAnimation::Name(name)) => Some(AnimationChoice::Name(name.clone())),
+        Some(RawAnimation::Index(i)) if *i >= 0 => Some(AnimationChoice::Index(*i as usize)),
+        Some(RawAnimation::Index(i)) => {
+            return Err(map.error(
+                &at.key("animation"),
+                format!("an animation index cannot be negative (got {i})"),
+                "use the animation's name or its index from 0",
+            ))
+        }
+    };
+    let speed = raw.speed.unwrap_or(1.0);
+    non_negative(speed, &at.key("speed"), "speed = 1.0", map)?;
+    let playback = match raw.playback.as_deref().unwrap_or("loop") {
+        "loop" => Playback::Loop,
+        "clamp" => Playback::Clamp,
+        other => {
+            return Err(map.error(
+                &at.key("playback"),
+                format!("unknown playback {other:?}"),
+                "use \"loop\" or \"clamp\"",
+            ))
+        }
+    };
+    let scale = raw.scale.unwrap_or(1.0);
+    positive(scale, &at.key("scale"), "scale = 0.01 (a model in centimetres)", map)?;
+    let tint_srgb = color(raw.tint, [1.0; 3], &at.key("tint"), map)?;
+    let mut path = Vec::new();
+    for (i, key) in raw.path.iter().flatten().enumerate() {
+        let key_at = at.key("path").index(i);
+        let (time_secs, time_key) = match (key.frame, key.time_secs) {
+            (Some(_), Some(_)) => {
+                return Err(map.error(
+                    &key_at.key("time_secs"),
+                    "both frame and time_secs are given",
+                    "keep one of them",
+                ))
+            }
+            (Some(frame), None) => ((frame - timeline.first_frame as f64) / timeline.fps, "frame"),
+            (None, Some(t)) => (t, "time_secs"),
+            (None, None) if raw.path.as_ref().is_some_and(|p| p.len() == 1) => (0.0, "position"),
+            (None, None) => {
+                return Err(map.error(
+                    &key_at,
+                    "a path keyframe needs a time when there are several",
+                    "add frame = N or time_secs = T",
+                ))
+            }
+        };
+        if let Some(previous) = path.last() {
+            let previous: &PathKey = previous;
+            if time_secs <= previous.time_secs {
+                return Err(map.error(
+                    &key_at.key(time_key),
+                    format!(
+                        "root-path keyframes are out of order: this one is at {time_secs:.3} s, \
+                         path[{}] before it at {:.3} s; keyframe times must increase",
+                        i - 1,
+                        previous.time_secs
+                    ),
+                    "reorder the [[character.path]] tables or correct this time",
+                ));
+            }
+        }
+        path.push(PathKey {
+            time_secs,
+            position_m: key.position,
+            heading_deg: key.heading_deg.unwrap_or(0.0),
+        });
+    }
+    if path.is_empty() {
+        path.push(PathKey {
+            time_secs: 0.0,
+            position_m: [0.0; 3],
+            heading_deg: 0.0,
+        });
+    }
+    let name = raw.name.clone().unwrap_or_else(|| {
+        let stem = file.file_stem().map_or_else(|| "character".into(), |s| s.to_string_lossy().into_owned());
+        format!("{stem}{index}")
+    });
+    Ok(CharacterSpec {
+        name,
+        file,
+        animation,
+        speed,
+        time_offset_secs: raw.time_offset_secs.unwrap_or(0.0),
+        playback,
+        scale,
+        tint_srgb,
+        path,
+        file_source: location(&at.key("file")),
+        animation_source: location(&if raw.animation.is_some() {
+            at.key("animation")
+        } else {
+            at.clone()
+        }),
     })
 }
 

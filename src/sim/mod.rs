@@ -13,7 +13,7 @@ pub mod coupling;
 pub mod ripples;
 
 use std::collections::BTreeMap;
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, OnceLock};
 
 pub use checkpoint::{CheckpointError, CheckpointKey, CheckpointStore, KeyHasher};
 pub use ripples::{Border, RippleField, RippleSettings, RippleState, RippleStepper, SumHeightField};
@@ -29,7 +29,7 @@ pub struct Simulation {
     strength: f64,
     first_frame: u32,
     frame_secs: f64,
-    store: Option<CheckpointStore>,
+    store: OnceLock<CheckpointStore>,
     recent: Mutex<BTreeMap<u32, Arc<RippleState>>>,
     /// Frames stepped (not read) since creation: how much work checkpoints saved, for reports.
     stepped: Mutex<u64>,
@@ -50,7 +50,7 @@ impl Simulation {
             strength,
             first_frame,
             frame_secs: 1.0 / fps,
-            store: None,
+            store: OnceLock::new(),
             recent: Mutex::new(BTreeMap::new()),
             stepped: Mutex::new(0),
         }
@@ -60,13 +60,14 @@ impl Simulation {
         self.stepper.settings()
     }
 
-    /// Reads and writes checkpoints in `store` from now on.
-    pub fn set_store(&mut self, store: CheckpointStore) {
-        self.store = Some(store);
+    /// Reads and writes checkpoints in `store` from now on. A simulation has one store for its
+    /// lifetime: a second call is ignored and returns false.
+    pub fn set_store(&self, store: CheckpointStore) -> bool {
+        self.store.set(store).is_ok()
     }
 
     pub fn store(&self) -> Option<&CheckpointStore> {
-        self.store.as_ref()
+        self.store.get()
     }
 
     /// Frames stepped so far (each one an occupancy pair and a frame of substeps).
@@ -93,7 +94,7 @@ impl Simulation {
                 .map(|(&f, state)| (f, state.clone()))
         };
         let from_disk = |after: u32| {
-            self.store.as_ref().and_then(|store| {
+            self.store.get().and_then(|store| {
                 store
                     .latest_at_or_before(frame, self.first_frame, &settings)
                     .filter(|(f, _)| *f > after)
@@ -143,7 +144,7 @@ impl Simulation {
         if self.recent.lock().unwrap().contains_key(&frame) {
             return StateSource::Memory;
         }
-        match self.store.as_ref().and_then(|store| {
+        match self.store.get().and_then(|store| {
             store.latest_at_or_before(frame, self.first_frame, self.settings())
         }) {
             Some((f, _)) => StateSource::Checkpoint(f),
@@ -157,7 +158,7 @@ impl Simulation {
     }
 
     fn save(&self, frame: u32, state: &RippleState) -> Result<(), CheckpointError> {
-        match &self.store {
+        match self.store.get() {
             Some(store) if !store.has(frame) => store.save(frame, state),
             _ => Ok(()),
         }
@@ -207,17 +208,17 @@ mod tests {
         // Through checkpoints: a first run writes them, a second reads frame 20's and steps on.
         let dir = tempfile::tempdir().unwrap();
         let key = KeyHasher::new("test").input("scene", b"x").finish();
-        let mut first = Simulation::new(settings(), 1.0, 1, 24.0);
+        let first = Simulation::new(settings(), 1.0, 1, 24.0);
         first.set_store(CheckpointStore::open(dir.path(), "s", key).unwrap());
         first.state_at(20, &occupancy).unwrap();
-        let mut second = Simulation::new(settings(), 1.0, 1, 24.0);
+        let second = Simulation::new(settings(), 1.0, 1, 24.0);
         second.set_store(CheckpointStore::open(dir.path(), "s", key).unwrap());
         assert_eq!(second.source_for(26), StateSource::Checkpoint(20));
         assert_eq!(*second.state_at(26, &occupancy).unwrap(), *straight[25]);
         assert_eq!(second.frames_stepped(), 6, "resumed from frame 20, not recomputed");
         // An exact checkpoint hit steps nothing.
         let third = {
-            let mut s = Simulation::new(settings(), 1.0, 1, 24.0);
+            let s = Simulation::new(settings(), 1.0, 1, 24.0);
             s.set_store(CheckpointStore::open(dir.path(), "s", key).unwrap());
             s
         };

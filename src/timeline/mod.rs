@@ -1,11 +1,14 @@
-//! Stage 1, timeline: frame numbers <-> seconds, and keyframe tracks sampled at a time (the camera).
+//! Stage 1, timeline: frame numbers <-> seconds, and keyframe tracks sampled at a time (the camera,
+//! characters' root paths).
 //! Receives the scene's frame rate, frame range and camera keys; returns times and [`crate::camera::Camera`]s.
 
 use glam::Vec3;
 
 mod camera_track;
+mod root_path;
 
 pub use camera_track::{CameraTrack, CameraTrackError};
+pub use root_path::{RootKey, RootPath};
 
 /// Frame range and rate. Frame `first_frame` is at t = 0: `time_secs(f) = (f - first_frame) / fps`.
 #[derive(Clone, Copy, Debug, PartialEq)]

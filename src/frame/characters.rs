@@ -1,0 +1,307 @@
+//! The scene's characters and ripples as the frame stage uses them: glTF assets loaded once, posed
+//! at any time (timeline time -> clip time by speed, offset and loop/clamp; root path ->
+//! `world_from_character`), their primitives turned into world-space [`Object`]s, and the ripple
+//! [`Simulation`] driven by their occupancy of the water, keyed for checkpoints.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use glam::{Mat4, Vec3};
+
+use super::SnellError;
+use crate::character::{AnimationSelector, CharacterAsset, PosedPrimitive};
+use crate::mesh::{Material, Object, Texture};
+use crate::scene::{AnimationChoice, CharacterSpec, Playback, Scene};
+use crate::sim::{
+    coupling, CheckpointKey, CheckpointStore, KeyHasher, RippleSettings, RippleState, Simulation,
+};
+use crate::timeline::{RootKey, RootPath};
+use crate::water::{HeightField, WaveField};
+
+/// Bumped whenever the simulation's results change for the same inputs (scheme, coupling,
+/// defaults): checkpoints made by another version are then never used.
+const SIMULATION_VERSION: &str = "ripples-1";
+
+/// One `[[character]]`, loaded.
+pub struct Character {
+    pub spec: CharacterSpec,
+    pub asset: CharacterAsset,
+    animation: Option<usize>,
+    root: RootPath,
+    /// Index of the asset's first texture in the job's texture list.
+    texture_base: u32,
+    /// The job's plain white texture, for primitives without a texture.
+    white_texture: u32,
+}
+
+impl Character {
+    /// Seconds into the animation clip at timeline time `time_secs`.
+    pub fn clip_secs(&self, time_secs: f64) -> f32 {
+        let Some(index) = self.animation else {
+            return 0.0;
+        };
+        let info = &self.asset.animations()[index];
+        let (start, end) = (info.start_secs as f64, info.end_secs as f64);
+        let local = (time_secs + self.spec.time_offset_secs) * self.spec.speed;
+        let duration = end - start;
+        let clip = match self.spec.playback {
+            _ if duration <= 0.0 => start,
+            Playback::Loop => start + local.rem_euclid(duration),
+            Playback::Clamp => (start + local).clamp(start, end),
+        };
+        clip as f32
+    }
+
+    pub fn world_from_character(&self, time_secs: f64) -> Mat4 {
+        self.root
+            .world_from_character(time_secs, self.spec.scale)
+            .as_mat4()
+    }
+
+    /// The posed primitives at timeline time `time_secs`, world space.
+    pub fn posed(&self, time_secs: f64) -> Vec<PosedPrimitive> {
+        let pose = self.asset.pose(self.animation, self.clip_secs(time_secs));
+        self.asset
+            .posed_primitives(&pose, self.world_from_character(time_secs))
+    }
+
+    /// The posed primitives as objects with materials indexing the job's texture list.
+    pub fn objects(&self, time_secs: f64) -> Vec<Object> {
+        let tint = Vec3::from(crate::scene::textures::srgb_to_linear3(self.spec.tint_srgb).map(|c| c as f32));
+        self.posed(time_secs)
+            .into_iter()
+            .map(|primitive| {
+                let [r, g, b, _] = primitive.base_color_factor;
+                Object {
+                    name: format!("{}/{}", self.spec.name, primitive.name),
+                    material: Material {
+                        texture: primitive
+                            .texture
+                            .map_or(self.white_texture, |t| self.texture_base + t as u32),
+                        tint_linear: tint * Vec3::new(r, g, b),
+                    },
+                    mesh: primitive.mesh,
+                }
+            })
+            .collect()
+    }
+}
+
+/// Loads every character of `scene`, appending their textures (and a white one when a primitive
+/// has none) to `textures`. Errors point at the scene file's `file` or `animation` key.
+pub fn load_characters(
+    scene: &Scene,
+    textures: &mut Vec<Texture>,
+) -> Result<Vec<Character>, SnellError> {
+    let mut characters = Vec::new();
+    let mut white_texture = None;
+    for spec in scene.characters.iter() {
+        let asset = CharacterAsset::load(&spec.file).map_err(|error| {
+            spec.file_source.error(
+                error.to_string(),
+                "check the file (a .glb, or a .gltf with its buffers beside it)",
+            )
+        })?;
+        let selector = match &spec.animation {
+            Some(AnimationChoice::Name(name)) => Some(AnimationSelector::Name(name.clone())),
+            Some(AnimationChoice::Index(i)) => Some(AnimationSelector::Index(*i)),
+            None => None,
+        };
+        let animation = match selector {
+            Some(selector) => Some(asset.resolve_animation(&selector).map_err(|error| {
+                spec.animation_source
+                    .error(error.to_string(), "name one of the file's animations")
+            })?),
+            None if asset.animations().is_empty() => None,
+            None => Some(0),
+        };
+        for warning in asset.warnings() {
+            log::warn!("{}: {warning}", spec.file.display());
+        }
+        let texture_base = textures.len() as u32;
+        textures.extend(asset.textures().iter().cloned());
+        let white = *white_texture.get_or_insert_with(|| {
+            textures.push(Texture {
+                name: "white".to_string(),
+                width: 1,
+                height: 1,
+                rgba8_srgb: vec![255; 4],
+            });
+            textures.len() as u32 - 1
+        });
+        let root = RootPath::new(
+            spec.path
+                .iter()
+                .map(|k| RootKey {
+                    time_secs: k.time_secs,
+                    position_m: k.position_m.into(),
+                    heading_deg: k.heading_deg,
+                })
+                .collect(),
+        );
+        characters.push(Character {
+            spec: spec.clone(),
+            asset,
+            animation,
+            root,
+            texture_base,
+            white_texture: white,
+        });
+    }
+    Ok(characters)
+}
+
+/// The ripple grid of the scene's `[water.ripples]`, over the water's extent.
+pub fn ripple_settings(scene: &Scene) -> RippleSettings {
+    let water = &scene.water;
+    let ripples = &water.ripples;
+    let spacing_m = (water.max_xz[0] - water.min_xz[0]) / (ripples.nodes[0] - 1) as f64;
+    RippleSettings {
+        nodes_x: ripples.nodes[0],
+        nodes_z: ripples.nodes[1],
+        min_x: water.min_xz[0],
+        min_z: water.min_xz[1],
+        spacing_m,
+        speed_m_per_s: ripples.speed_m_per_s,
+        damping_per_s: ripples.damping_per_s,
+        border: ripples.border,
+        sponge_nodes: (ripples.sponge_width_m / spacing_m).round() as u32,
+        sponge_damping_per_s: 8.0 * ripples.speed_m_per_s / ripples.sponge_width_m.max(spacing_m),
+    }
+}
+
+/// The simulation's key: the scene file's bytes, every file it references (characters and their
+/// buffers and images, image textures), the simulation settings and code version.
+pub fn simulation_key(
+    scene: &Scene,
+    characters: &[Character],
+    settings: &RippleSettings,
+) -> Result<CheckpointKey, SnellError> {
+    let mut hasher = KeyHasher::new(SIMULATION_VERSION);
+    let read = |path: &Path| {
+        std::fs::read(path).map_err(|source| {
+            SnellError::Scene(crate::scene::SceneError::Read {
+                path: path.to_path_buf(),
+                source,
+            })
+        })
+    };
+    hasher.input("scene", &read(&scene.path)?);
+    let mut files: Vec<PathBuf> = characters
+        .iter()
+        .flat_map(|c| c.asset.files().iter().cloned())
+        .chain(scene.image_files())
+        .collect();
+    files.sort();
+    files.dedup();
+    for file in &files {
+        hasher.input(&file.to_string_lossy(), &read(file)?);
+    }
+    hasher.input(
+        "settings",
+        serde_json::to_string(settings)
+            .expect("settings serialise")
+            .as_bytes(),
+    );
+    hasher.input(
+        "timeline",
+        format!("{} {}", scene.timeline.fps, scene.timeline.first_frame).as_bytes(),
+    );
+    Ok(hasher.finish())
+}
+
+/// Characters and ripples of a job.
+pub struct Dynamics {
+    pub characters: Vec<Character>,
+    pub simulation: Option<Simulation>,
+    pub key: CheckpointKey,
+    pub coupling_depth_m: f64,
+}
+
+impl Dynamics {
+    pub fn new(scene: &Scene, characters: Vec<Character>) -> Result<Self, SnellError> {
+        let settings = ripple_settings(scene);
+        let key = simulation_key(scene, &characters, &settings)?;
+        let ripples = &scene.water.ripples;
+        let simulation = ripples.enabled.then(|| {
+            Simulation::new(
+                settings,
+                ripples.strength,
+                scene.timeline.first_frame,
+                scene.timeline.fps,
+            )
+        });
+        Ok(Dynamics {
+            characters,
+            simulation,
+            key,
+            coupling_depth_m: ripples.coupling_depth_m,
+        })
+    }
+
+    /// Opens the checkpoint store under `out_dir` (stale ones of this scene are deleted; they are
+    /// listed in the returned message).
+    pub fn use_checkpoints(&self, out_dir: &Path, scene_name: &str) -> Result<Option<String>, SnellError> {
+        let Some(simulation) = &self.simulation else {
+            return Ok(None);
+        };
+        if simulation.store().is_some() {
+            return Ok(None);
+        }
+        let store = CheckpointStore::open(out_dir, scene_name, self.key)
+            .map_err(|e| SnellError::Argument(e.to_string()))?;
+        let note = (!store.removed_stale.is_empty()).then(|| {
+            format!(
+                "removed stale simulation checkpoints (the scene or its assets changed): {}",
+                store
+                    .removed_stale
+                    .iter()
+                    .map(|p| p.display().to_string())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            )
+        });
+        simulation.set_store(store);
+        Ok(note)
+    }
+
+    /// The ripple state at `frame` (None when ripples are off).
+    pub fn ripples_at(
+        &self,
+        scene: &Scene,
+        waves: &WaveField,
+        frame: u32,
+    ) -> Result<Option<Arc<RippleState>>, SnellError> {
+        let Some(simulation) = &self.simulation else {
+            return Ok(None);
+        };
+        let occupancy = |f: u32| {
+            let time_secs = scene.timeline.time_secs(f);
+            let surface = waves.at(time_secs);
+            self.occupancy(simulation.settings(), &surface, time_secs)
+        };
+        simulation
+            .state_at(frame, &occupancy)
+            .map(Some)
+            .map_err(|e| SnellError::Argument(e.to_string()))
+    }
+
+    /// The characters' occupancy of the ripple grid at `time_secs`.
+    pub fn occupancy(
+        &self,
+        settings: &RippleSettings,
+        surface: &dyn HeightField,
+        time_secs: f64,
+    ) -> Vec<f32> {
+        let posed: Vec<PosedPrimitive> = self
+            .characters
+            .iter()
+            .flat_map(|c| c.posed(time_secs))
+            .collect();
+        let meshes: Vec<(&[Vec3], &[[u32; 3]])> = posed
+            .iter()
+            .map(|p| (p.mesh.positions.as_slice(), p.mesh.triangles.as_slice()))
+            .collect();
+        coupling::occupancy(settings, &meshes, surface, self.coupling_depth_m)
+    }
+}
