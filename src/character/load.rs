@@ -72,7 +72,28 @@ pub(super) fn load(path: &Path) -> Result<CharacterAsset, CharacterError> {
         });
     }
     let used_extensions = root.extensions_used.clone();
-    let document = gltf::Document::from_json(root).map_err(|e| not_gltf(e.to_string()))?;
+    // gltf-json 1.4's validator indexes `accessors[POSITION]` before checking the index, so an
+    // out-of-range POSITION would panic inside it: check that one first, and keep a backstop in
+    // case another hook does the same.
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, primitive) in mesh.primitives.iter().enumerate() {
+            let position = gltf::json::validation::Checked::Valid(gltf::Semantic::Positions);
+            if let Some(index) = primitive.attributes.get(&position) {
+                if index.value() >= root.accessors.len() {
+                    return Err(not_gltf(format!(
+                        "meshes[{m}].primitives[{p}].attributes.POSITION is accessor {} but the file has {}",
+                        index.value(),
+                        root.accessors.len()
+                    )));
+                }
+            }
+        }
+    }
+    let document = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        gltf::Document::from_json(root)
+    }))
+    .map_err(|_| not_gltf("the glTF validator failed on an out-of-range index".to_string()))?
+    .map_err(|e| not_gltf(e.to_string()))?;
 
     let mut loader = Loader {
         path: path.to_path_buf(),
@@ -354,8 +375,7 @@ impl Loader {
         }
         let base = self.path.parent().unwrap_or(Path::new(""));
         let file = base.join(percent_decode(uri));
-        let bytes =
-            std::fs::read(&file).map_err(|e| format!("cannot read {}: {e}", file.display()))?;
+        let bytes = std::fs::read(&file).map_err(|e| format!("{}: {e}", file.display()))?;
         self.files.push(file);
         Ok(bytes)
     }
