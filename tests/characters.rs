@@ -438,7 +438,9 @@ fn cubic_spline_channels_follow_the_hermite_spline() {
         let h10 = s * s * s - 2.0 * s * s + s;
         let h01 = -2.0 * s * s * s + 3.0 * s * s;
         let h11 = s * s * s - s * s;
-        let tx = h10 * 2.0 * 3.0 + h01 * 10.0 + h11 * 2.0 * -1.0;
+        // Translation x: start 0, out-tangent b0 = 3, end 10, in-tangent a1 = -1, td = 2.
+        let (td, b0, end_x, a1) = (2.0, 3.0, 10.0, -1.0);
+        let tx = h10 * td * b0 + h01 * end_x + h11 * td * a1;
         let ty = h00 + h01;
         let (qz, qw) = (h01 * h, h00 + h01 * h);
         let norm = (qz * qz + qw * qw).sqrt();

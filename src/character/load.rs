@@ -28,6 +28,9 @@ const GLB_CHUNK_BIN: u32 = 0x004E_4942;
 /// At most JOINTS_0/WEIGHTS_0 and JOINTS_1/WEIGHTS_1: 8 influences per vertex.
 const INFLUENCE_SETS: u32 = 2;
 
+/// The nodes, each node's parent, and an order with parents before children.
+type NodeHierarchy = (Vec<Node>, Vec<Option<usize>>, Vec<usize>);
+
 /// What is carried through loading: the file (for messages), everything read, the warnings.
 struct Loader {
     path: PathBuf,
@@ -138,7 +141,9 @@ pub(super) fn load(path: &Path) -> Result<CharacterAsset, CharacterError> {
                 .rev(),
         );
         let Some(mesh) = node.mesh() else { continue };
-        if !primitives_of_mesh.contains_key(&mesh.index()) {
+        if let std::collections::hash_map::Entry::Vacant(entry) =
+            primitives_of_mesh.entry(mesh.index())
+        {
             let mut indices = Vec::new();
             for primitive in mesh.primitives() {
                 if let Some(loaded) = loader.load_primitive(
@@ -151,7 +156,7 @@ pub(super) fn load(path: &Path) -> Result<CharacterAsset, CharacterError> {
                     primitives.push(loaded);
                 }
             }
-            primitives_of_mesh.insert(mesh.index(), indices);
+            entry.insert(indices);
         }
         let skin = node.skin().map(|skin| skin.index());
         for &primitive_index in &primitives_of_mesh[&mesh.index()] {
@@ -571,10 +576,7 @@ impl Loader {
         Ok(())
     }
 
-    fn load_nodes(
-        &self,
-        document: &gltf::Document,
-    ) -> Result<(Vec<Node>, Vec<Option<usize>>, Vec<usize>), CharacterError> {
+    fn load_nodes(&self, document: &gltf::Document) -> Result<NodeHierarchy, CharacterError> {
         let mut nodes = Vec::new();
         let mut parents: Vec<Option<usize>> = vec![None; document.nodes().len()];
         for node in document.nodes() {
@@ -1272,7 +1274,7 @@ fn mode_triangles(mode: Mode, indices: &[u32]) -> Result<Vec<[u32; 3]>, usize> {
             .map(|i| [indices[i], indices[i + 1], indices[0]])
             .collect()),
         _ => {
-            if indices.len() % 3 != 0 {
+            if !indices.len().is_multiple_of(3) {
                 return Err(indices.len() % 3);
             }
             Ok(indices
