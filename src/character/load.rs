@@ -28,6 +28,9 @@ const GLB_CHUNK_BIN: u32 = 0x004E_4942;
 /// At most JOINTS_0/WEIGHTS_0 and JOINTS_1/WEIGHTS_1: 8 influences per vertex.
 const INFLUENCE_SETS: u32 = 2;
 
+/// The nodes, each node's parent, and an order with parents before children.
+type NodeHierarchy = (Vec<Node>, Vec<Option<usize>>, Vec<usize>);
+
 /// What is carried through loading: the file (for messages), everything read, the warnings.
 struct Loader {
     path: PathBuf,
@@ -72,7 +75,28 @@ pub(super) fn load(path: &Path) -> Result<CharacterAsset, CharacterError> {
         });
     }
     let used_extensions = root.extensions_used.clone();
-    let document = gltf::Document::from_json(root).map_err(|e| not_gltf(e.to_string()))?;
+    // gltf-json 1.4's validator indexes `accessors[POSITION]` before checking the index, so an
+    // out-of-range POSITION would panic inside it: check that one first, and keep a backstop in
+    // case another hook does the same.
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, primitive) in mesh.primitives.iter().enumerate() {
+            let position = gltf::json::validation::Checked::Valid(gltf::Semantic::Positions);
+            if let Some(index) = primitive.attributes.get(&position) {
+                if index.value() >= root.accessors.len() {
+                    return Err(not_gltf(format!(
+                        "meshes[{m}].primitives[{p}].attributes.POSITION is accessor {} but the file has {}",
+                        index.value(),
+                        root.accessors.len()
+                    )));
+                }
+            }
+        }
+    }
+    let document = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        gltf::Document::from_json(root)
+    }))
+    .map_err(|_| not_gltf("the glTF validator failed on an out-of-range index".to_string()))?
+    .map_err(|e| not_gltf(e.to_string()))?;
 
     let mut loader = Loader {
         path: path.to_path_buf(),
@@ -117,7 +141,9 @@ pub(super) fn load(path: &Path) -> Result<CharacterAsset, CharacterError> {
                 .rev(),
         );
         let Some(mesh) = node.mesh() else { continue };
-        if !primitives_of_mesh.contains_key(&mesh.index()) {
+        if let std::collections::hash_map::Entry::Vacant(entry) =
+            primitives_of_mesh.entry(mesh.index())
+        {
             let mut indices = Vec::new();
             for primitive in mesh.primitives() {
                 if let Some(loaded) = loader.load_primitive(
@@ -130,7 +156,7 @@ pub(super) fn load(path: &Path) -> Result<CharacterAsset, CharacterError> {
                     primitives.push(loaded);
                 }
             }
-            primitives_of_mesh.insert(mesh.index(), indices);
+            entry.insert(indices);
         }
         let skin = node.skin().map(|skin| skin.index());
         for &primitive_index in &primitives_of_mesh[&mesh.index()] {
@@ -354,8 +380,7 @@ impl Loader {
         }
         let base = self.path.parent().unwrap_or(Path::new(""));
         let file = base.join(percent_decode(uri));
-        let bytes =
-            std::fs::read(&file).map_err(|e| format!("cannot read {}: {e}", file.display()))?;
+        let bytes = std::fs::read(&file).map_err(|e| format!("{}: {e}", file.display()))?;
         self.files.push(file);
         Ok(bytes)
     }
@@ -551,10 +576,7 @@ impl Loader {
         Ok(())
     }
 
-    fn load_nodes(
-        &self,
-        document: &gltf::Document,
-    ) -> Result<(Vec<Node>, Vec<Option<usize>>, Vec<usize>), CharacterError> {
+    fn load_nodes(&self, document: &gltf::Document) -> Result<NodeHierarchy, CharacterError> {
         let mut nodes = Vec::new();
         let mut parents: Vec<Option<usize>> = vec![None; document.nodes().len()];
         for node in document.nodes() {
@@ -1252,7 +1274,7 @@ fn mode_triangles(mode: Mode, indices: &[u32]) -> Result<Vec<[u32; 3]>, usize> {
             .map(|i| [indices[i], indices[i + 1], indices[0]])
             .collect()),
         _ => {
-            if indices.len() % 3 != 0 {
+            if !indices.len().is_multiple_of(3) {
                 return Err(indices.len() % 3);
             }
             Ok(indices

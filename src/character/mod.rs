@@ -8,7 +8,7 @@
 //! 1. [`CharacterAsset::load`] reads and *validates* everything once: buffers long enough, joint
 //!    indices inside their skin, weights that can be normalised, animation keys well formed.
 //!    A loaded asset is therefore always safe to pose; posing never fails.
-//! 2. [`CharacterAsset::pose`] samples the animation ([`animation`]) into node and joint matrices.
+//! 2. [`CharacterAsset::pose`] samples the animation (`animation.rs`) into node and joint matrices.
 //! 3. [`CharacterAsset::posed_primitives`] skins the vertices (linear blend skinning, rayon,
 //!    deterministic) or, for meshes without a skin, applies their node's global transform.
 
