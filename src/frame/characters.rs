@@ -67,7 +67,9 @@ impl Character {
 
     /// The posed primitives as objects with materials indexing the job's texture list.
     pub fn objects(&self, time_secs: f64) -> Vec<Object> {
-        let tint = Vec3::from(crate::scene::textures::srgb_to_linear3(self.spec.tint_srgb).map(|c| c as f32));
+        let tint = Vec3::from(
+            crate::scene::textures::srgb_to_linear3(self.spec.tint_srgb).map(|c| c as f32),
+        );
         self.posed(time_secs)
             .into_iter()
             .map(|primitive| {
@@ -241,7 +243,11 @@ impl Dynamics {
 
     /// Opens the checkpoint store under `out_dir` (stale ones of this scene are deleted; they are
     /// listed in the returned message).
-    pub fn use_checkpoints(&self, out_dir: &Path, scene_name: &str) -> Result<Option<String>, SnellError> {
+    pub fn use_checkpoints(
+        &self,
+        out_dir: &Path,
+        scene_name: &str,
+    ) -> Result<Option<String>, SnellError> {
         let Some(simulation) = &self.simulation else {
             return Ok(None);
         };

@@ -22,8 +22,8 @@ use crate::refraction::virtual_geometry::{
     build_virtual_geometry, ImageSearch, VirtualGeometryRequest,
 };
 use crate::scene::{Scene, SceneError};
-use crate::timeline::{CameraTrack, Timeline};
 use crate::sim::SumHeightField;
+use crate::timeline::{CameraTrack, Timeline};
 use crate::water::{build_membrane, HeightField, Membrane, Wave, WaveField};
 
 /// Everything that can stop a render, sorted into "your input is wrong" (exit 2) and the rest.

@@ -6,8 +6,8 @@ use std::sync::Arc;
 
 use glam::Vec3;
 
-use super::error::{KeyPath, SourceMap};
 use super::error::line_column_of;
+use super::error::{KeyPath, SourceMap};
 use super::format::{
     RawAnimation, RawCameraKey, RawCharacter, RawObject, RawRipples, RawScene, RawTexture, RawWater,
 };
@@ -343,9 +343,19 @@ fn ripples(
         ));
     }
     let speed_m_per_s = raw.speed_m_per_s.unwrap_or(DEFAULT_RIPPLE_SPEED_M_PER_S);
-    positive(speed_m_per_s, &path.key("speed_m_per_s"), "speed_m_per_s = 0.5", map)?;
+    positive(
+        speed_m_per_s,
+        &path.key("speed_m_per_s"),
+        "speed_m_per_s = 0.5",
+        map,
+    )?;
     let damping_per_s = raw.damping_per_s.unwrap_or(DEFAULT_RIPPLE_DAMPING_PER_S);
-    non_negative(damping_per_s, &path.key("damping_per_s"), "damping_per_s = 0.5", map)?;
+    non_negative(
+        damping_per_s,
+        &path.key("damping_per_s"),
+        "damping_per_s = 0.5",
+        map,
+    )?;
     let border = match raw.border.as_deref().unwrap_or("reflect") {
         "reflect" => crate::sim::Border::Reflect,
         "absorb" => crate::sim::Border::Absorb,
@@ -358,11 +368,21 @@ fn ripples(
         }
     };
     let sponge_width_m = raw.sponge_width_m.unwrap_or(DEFAULT_SPONGE_WIDTH_M);
-    non_negative(sponge_width_m, &path.key("sponge_width_m"), "sponge_width_m = 0.5", map)?;
+    non_negative(
+        sponge_width_m,
+        &path.key("sponge_width_m"),
+        "sponge_width_m = 0.5",
+        map,
+    )?;
     let strength = raw.strength.unwrap_or(1.0);
     non_negative(strength, &path.key("strength"), "strength = 1.0", map)?;
     let coupling_depth_m = raw.coupling_depth_m.unwrap_or(DEFAULT_COUPLING_DEPTH_M);
-    positive(coupling_depth_m, &path.key("coupling_depth_m"), "coupling_depth_m = 0.25", map)?;
+    positive(
+        coupling_depth_m,
+        &path.key("coupling_depth_m"),
+        "coupling_depth_m = 0.25",
+        map,
+    )?;
     Ok(RippleSpec {
         enabled: raw.enabled.unwrap_or(has_characters),
         nodes: [nodes[0] as u32, nodes[1] as u32],
@@ -396,7 +416,10 @@ fn character(
     if !file.is_file() {
         return Err(map.error(
             &at.key("file"),
-            format!("cannot find the glTF file {} (resolved against the scene's folder)", file.display()),
+            format!(
+                "cannot find the glTF file {} (resolved against the scene's folder)",
+                file.display()
+            ),
             "check the path; it is relative to the scene file",
         ));
     }
@@ -426,7 +449,12 @@ fn character(
         }
     };
     let scale = raw.scale.unwrap_or(1.0);
-    positive(scale, &at.key("scale"), "scale = 0.01 (a model in centimetres)", map)?;
+    positive(
+        scale,
+        &at.key("scale"),
+        "scale = 0.01 (a model in centimetres)",
+        map,
+    )?;
     let tint_srgb = color(raw.tint, [1.0; 3], &at.key("tint"), map)?;
     let mut path = Vec::new();
     for (i, key) in raw.path.iter().flatten().enumerate() {
@@ -439,7 +467,10 @@ fn character(
                     "keep one of them",
                 ))
             }
-            (Some(frame), None) => ((frame - timeline.first_frame as f64) / timeline.fps, "frame"),
+            (Some(frame), None) => (
+                (frame - timeline.first_frame as f64) / timeline.fps,
+                "frame",
+            ),
             (None, Some(t)) => (t, "time_secs"),
             (None, None) if raw.path.as_ref().is_some_and(|p| p.len() == 1) => (0.0, "position"),
             (None, None) => {
@@ -479,7 +510,9 @@ fn character(
         });
     }
     let name = raw.name.clone().unwrap_or_else(|| {
-        let stem = file.file_stem().map_or_else(|| "character".into(), |s| s.to_string_lossy().into_owned());
+        let stem = file
+            .file_stem()
+            .map_or_else(|| "character".into(), |s| s.to_string_lossy().into_owned());
         format!("{stem}{index}")
     });
     Ok(CharacterSpec {

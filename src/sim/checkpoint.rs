@@ -79,7 +79,11 @@ pub struct CheckpointStore {
 impl CheckpointStore {
     /// Opens (creating) `<out_dir>/.snell-sim/<scene_stem>-<key>/`, deleting any other folder of
     /// the same scene stem there: those belong to an older version of the scene or its assets.
-    pub fn open(out_dir: &Path, scene_stem: &str, key: CheckpointKey) -> Result<Self, CheckpointError> {
+    pub fn open(
+        out_dir: &Path,
+        scene_stem: &str,
+        key: CheckpointKey,
+    ) -> Result<Self, CheckpointError> {
         let root = out_dir.join(CHECKPOINT_DIR);
         let name = format!("{scene_stem}-{}", &key.hex()[..32]);
         let dir = root.join(&name);
@@ -242,7 +246,9 @@ mod tests {
     }
 
     fn key(text: &str) -> CheckpointKey {
-        KeyHasher::new("test").input("scene", text.as_bytes()).finish()
+        KeyHasher::new("test")
+            .input("scene", text.as_bytes())
+            .finish()
     }
 
     #[test]
@@ -254,7 +260,12 @@ mod tests {
         state.velocity_m_per_s[7] = -1.5e-3;
         store.save(12, &state).unwrap();
         assert_eq!(store.load(12, &settings()), Some(state.clone()));
-        assert_eq!(store.latest_at_or_before(20, 1, &settings()).map(|(f, _)| f), Some(12));
+        assert_eq!(
+            store
+                .latest_at_or_before(20, 1, &settings())
+                .map(|(f, _)| f),
+            Some(12)
+        );
         assert_eq!(store.latest_at_or_before(11, 1, &settings()), None);
         // Another grid size: refused.
         let mut other = settings();
@@ -286,7 +297,10 @@ mod tests {
         let new = CheckpointStore::open(dir.path(), "pool", key("b")).unwrap();
         assert_eq!(new.removed_stale, vec![old.dir().to_path_buf()]);
         assert!(!old.dir().exists());
-        assert!(other_scene.dir().exists(), "other scenes' checkpoints are kept");
+        assert!(
+            other_scene.dir().exists(),
+            "other scenes' checkpoints are kept"
+        );
         assert_eq!(new.latest_at_or_before(10, 1, &settings()), None);
     }
 }

@@ -108,10 +108,7 @@ fn box3(values: &[f32], nx: usize, nz: usize) -> Vec<f32> {
             }
             for dz in -1isize..=1 {
                 for dx in -1isize..=1 {
-                    let (tx, tz) = (
-                        mirror(ix as isize + dx, nx),
-                        mirror(iz as isize + dz, nz),
-                    );
+                    let (tx, tz) = (mirror(ix as isize + dx, nx), mirror(iz as isize + dz, nz));
                     out[tz * nx + tx] += share;
                 }
             }
@@ -150,7 +147,9 @@ mod tests {
                 if z { max.z } else { min.z },
             )
         };
-        let positions: Vec<Vec3> = (0..8).map(|i| p(i & 1 != 0, i & 2 != 0, i & 4 != 0)).collect();
+        let positions: Vec<Vec3> = (0..8)
+            .map(|i| p(i & 1 != 0, i & 2 != 0, i & 4 != 0))
+            .collect();
         let quads = [
             [0, 2, 3, 1], // -z
             [4, 5, 7, 6], // +z
@@ -179,7 +178,11 @@ mod tests {
         let (positions, triangles) = cube(Vec3::new(-0.1, -0.2, -0.1), Vec3::new(0.1, 0.2, 0.1));
         // Depth weighting off (a very deep coupling depth) to check the volume itself.
         let o = occupancy(&s, &[(&positions, &triangles)], &water, 1e9);
-        assert!((total_volume(&o, &s) - 0.008).abs() < 1e-6, "{}", total_volume(&o, &s));
+        assert!(
+            (total_volume(&o, &s) - 0.008).abs() < 1e-6,
+            "{}",
+            total_volume(&o, &s)
+        );
         // Entirely above the water: nothing.
         let (high, triangles) = cube(Vec3::new(-0.1, 0.1, -0.1), Vec3::new(0.1, 0.3, 0.1));
         let o = occupancy(&s, &[(&high, &triangles)], &water, 1e9);

@@ -16,7 +16,9 @@ use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex, OnceLock};
 
 pub use checkpoint::{CheckpointError, CheckpointKey, CheckpointStore, KeyHasher};
-pub use ripples::{Border, RippleField, RippleSettings, RippleState, RippleStepper, SumHeightField};
+pub use ripples::{
+    Border, RippleField, RippleSettings, RippleState, RippleStepper, SumHeightField,
+};
 
 /// How many recent states the simulation keeps in memory (a frame and the one before it are
 /// what a render asks for; a few more make scrubbing back cheap).
@@ -123,7 +125,8 @@ impl Simulation {
                 &occupancy_now,
                 self.strength,
             );
-            self.stepper.advance_frame(&mut state, self.frame_secs, &push);
+            self.stepper
+                .advance_frame(&mut state, self.frame_secs, &push);
             at += 1;
             *self.stepped.lock().unwrap() += 1;
             self.save(at, &state)?;
@@ -144,9 +147,11 @@ impl Simulation {
         if self.recent.lock().unwrap().contains_key(&frame) {
             return StateSource::Memory;
         }
-        match self.store.get().and_then(|store| {
-            store.latest_at_or_before(frame, self.first_frame, self.settings())
-        }) {
+        match self
+            .store
+            .get()
+            .and_then(|store| store.latest_at_or_before(frame, self.first_frame, self.settings()))
+        {
             Some((f, _)) => StateSource::Checkpoint(f),
             None => StateSource::Calm,
         }
@@ -197,9 +202,13 @@ mod tests {
     #[test]
     fn a_frame_is_the_same_reached_from_the_start_from_memory_or_from_a_checkpoint() {
         let full = Simulation::new(settings(), 1.0, 1, 24.0);
-        let straight: Vec<Arc<RippleState>> =
-            (1..=30).map(|f| full.state_at(f, &occupancy).unwrap()).collect();
-        assert!(straight[29].max_abs_height_m() > 0.0, "the body made ripples");
+        let straight: Vec<Arc<RippleState>> = (1..=30)
+            .map(|f| full.state_at(f, &occupancy).unwrap())
+            .collect();
+        assert!(
+            straight[29].max_abs_height_m() > 0.0,
+            "the body made ripples"
+        );
 
         // Alone, from calm water, jumping straight to frame 30.
         let alone = Simulation::new(settings(), 1.0, 1, 24.0);
@@ -215,7 +224,11 @@ mod tests {
         second.set_store(CheckpointStore::open(dir.path(), "s", key).unwrap());
         assert_eq!(second.source_for(26), StateSource::Checkpoint(20));
         assert_eq!(*second.state_at(26, &occupancy).unwrap(), *straight[25]);
-        assert_eq!(second.frames_stepped(), 6, "resumed from frame 20, not recomputed");
+        assert_eq!(
+            second.frames_stepped(),
+            6,
+            "resumed from frame 20, not recomputed"
+        );
         // An exact checkpoint hit steps nothing.
         let third = {
             let s = Simulation::new(settings(), 1.0, 1, 24.0);

@@ -85,9 +85,9 @@ impl RippleSettings {
                     let to_edge = ix.min(nx - 1 - ix).min(iz).min(nz - 1 - iz) as f64;
                     if to_edge < width {
                         let depth_into_sponge = (width - to_edge) / width;
-                        damping[iz * nx + ix] += (self.sponge_damping_per_s
-                            * depth_into_sponge
-                            * depth_into_sponge) as f32;
+                        damping[iz * nx + ix] +=
+                            (self.sponge_damping_per_s * depth_into_sponge * depth_into_sponge)
+                                as f32;
                     }
                 }
             }
@@ -144,8 +144,8 @@ impl RippleStepper {
                     let east = if ix + 1 < nx { height[at + 1] } else { centre };
                     let south = if iz > 0 { height[at - nx] } else { centre };
                     let north = if iz + 1 < nz { height[at + nx] } else { centre };
-                    let laplacian = (west - centre) + (east - centre) + (south - centre)
-                        + (north - centre);
+                    let laplacian =
+                        (west - centre) + (east - centre) + (south - centre) + (north - centre);
                     let half_damping = 0.5 * damping[at] * h;
                     *velocity = ((1.0 - half_damping) * *velocity + h * c2_over_dx2 * laplacian)
                         / (1.0 + half_damping);
@@ -359,7 +359,10 @@ mod tests {
             let frame_secs = 1.0 / fps;
             let n = s.substeps_per_frame(frame_secs);
             let courant = s.speed_m_per_s * (frame_secs / n as f64) / s.spacing_m;
-            assert!(courant <= MAX_COURANT + 1e-12, "fps {fps}: courant {courant}");
+            assert!(
+                courant <= MAX_COURANT + 1e-12,
+                "fps {fps}: courant {courant}"
+            );
             assert!(courant < 1.0 / 2f64.sqrt());
             // The fewest such substeps: one fewer would break the margin.
             if n > 1 {
@@ -441,14 +444,23 @@ mod tests {
                         energy <= previous * (1.0 + 1e-5) + 1e-12 * start,
                         "{border:?} damping {damping_per_s}: energy rose at step {step}: {previous:e} -> {energy:e}"
                     );
-                    assert!(energy >= -1e-12, "energy is a positive form under the CFL limit");
+                    assert!(
+                        energy >= -1e-12,
+                        "energy is a positive form under the CFL limit"
+                    );
                     previous = energy;
                 }
                 let ratio = previous / start;
                 if damping_per_s == 0.0 && border == Border::Reflect {
-                    assert!((ratio - 1.0).abs() < 1e-3, "conserved without damping: {ratio}");
+                    assert!(
+                        (ratio - 1.0).abs() < 1e-3,
+                        "conserved without damping: {ratio}"
+                    );
                 } else {
-                    assert!(ratio < 0.05, "{border:?} {damping_per_s}: decays, kept {ratio}");
+                    assert!(
+                        ratio < 0.05,
+                        "{border:?} {damping_per_s}: decays, kept {ratio}"
+                    );
                 }
             }
         }
@@ -494,7 +506,10 @@ mod tests {
             let (gx, gz) = field.gradient(x, z);
             let fx = (field.height(x + e, z) - field.height(x - e, z)) / (2.0 * e);
             let fz = (field.height(x, z + e) - field.height(x, z - e)) / (2.0 * e);
-            assert!((gx - fx).abs() < 1e-6 && (gz - fz).abs() < 1e-6, "{gx} {fx} {gz} {fz}");
+            assert!(
+                (gx - fx).abs() < 1e-6 && (gz - fz).abs() < 1e-6,
+                "{gx} {fx} {gz} {fz}"
+            );
         }
         // Zero outside.
         assert_eq!(field.height(5.0, 0.0), 0.0);

@@ -101,7 +101,10 @@ mod tests {
         let path = RootPath::new(vec![key(1.0, 0.0, 0.0, 90.0), key(3.0, 4.0, 2.0, 90.0)]);
         for (t, x) in [(1.0, 0.0), (1.5, 1.0), (2.0, 2.0), (2.75, 3.5), (3.0, 4.0)] {
             let (p, h) = path.sample(t);
-            assert!((p.x - x).abs() < 1e-12 && (p.z - x / 2.0).abs() < 1e-12, "{t}: {p}");
+            assert!(
+                (p.x - x).abs() < 1e-12 && (p.z - x / 2.0).abs() < 1e-12,
+                "{t}: {p}"
+            );
             assert_eq!(h, 90.0);
         }
         assert_eq!(path.sample(0.0).0, DVec3::ZERO);
@@ -136,7 +139,10 @@ mod tests {
         let m = path.world_from_character(0.0, 0.5);
         // Heading 90: the model's +z (forward) faces +x; scale 0.5; origin at the key.
         let forward = m.transform_vector3(DVec3::Z);
-        assert!((forward - DVec3::new(0.5, 0.0, 0.0)).length() < 1e-12, "{forward}");
+        assert!(
+            (forward - DVec3::new(0.5, 0.0, 0.0)).length() < 1e-12,
+            "{forward}"
+        );
         assert!((m.transform_point3(DVec3::ZERO) - DVec3::new(1.0, 0.0, 2.0)).length() < 1e-12);
     }
 }
