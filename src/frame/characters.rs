@@ -9,12 +9,10 @@ use std::sync::Arc;
 use glam::{Mat4, Vec3};
 
 use super::SnellError;
-use crate::character::{AnimationSelector, CharacterAsset, PosedPrimitive};
+use crate::character::{AnimationSelector, CharacterAsset};
 use crate::mesh::{Material, Object, Texture};
 use crate::scene::{AnimationChoice, CharacterSpec, Playback, Scene};
-use crate::sim::{
-    coupling, CheckpointKey, CheckpointStore, KeyHasher, RippleSettings, RippleState, Simulation,
-};
+use crate::sim::{coupling, CheckpointKey, KeyHasher, RippleSettings, RippleState, Simulation};
 use crate::timeline::{RootKey, RootPath};
 use crate::water::{HeightField, WaveField};
 
@@ -58,19 +56,15 @@ impl Character {
             .as_mat4()
     }
 
-    /// The posed primitives at timeline time `time_secs`, world space.
-    pub fn posed(&self, time_secs: f64) -> Vec<PosedPrimitive> {
-        let pose = self.asset.pose(self.animation, self.clip_secs(time_secs));
-        self.asset
-            .posed_primitives(&pose, self.world_from_character(time_secs))
-    }
-
-    /// The posed primitives as objects with materials indexing the job's texture list.
+    /// The primitives posed at timeline time `time_secs` as world-space objects, with materials
+    /// indexing the job's texture list.
     pub fn objects(&self, time_secs: f64) -> Vec<Object> {
+        let pose = self.asset.pose(self.animation, self.clip_secs(time_secs));
         let tint = Vec3::from(
             crate::scene::textures::srgb_to_linear3(self.spec.tint_srgb).map(|c| c as f32),
         );
-        self.posed(time_secs)
+        self.asset
+            .posed_primitives(&pose, self.world_from_character(time_secs))
             .into_iter()
             .map(|primitive| {
                 let [r, g, b, _] = primitive.base_color_factor;
@@ -168,6 +162,10 @@ pub fn ripple_settings(scene: &Scene) -> RippleSettings {
         damping_per_s: ripples.damping_per_s,
         border: ripples.border,
         sponge_nodes: (ripples.sponge_width_m / spacing_m).round() as u32,
+        // A ripple crossing the sponge (width w, at speed c) spends w / c in it. With an edge
+        // damping of 8 c / w on a quadratic ramp (mean: a third of it), its amplitude falls by
+        // e^(-gamma t / 2) = e^(-4/3) ~ 0.26 on the way in and again on the way out: about 7 %
+        // comes back, and the ramp has no sharp edge to reflect from.
         sponge_damping_per_s: 8.0 * ripples.speed_m_per_s / ripples.sponge_width_m.max(spacing_m),
     }
 }
@@ -215,34 +213,38 @@ pub fn simulation_key(
 /// Characters and ripples of a job.
 pub struct Dynamics {
     pub characters: Vec<Character>,
+    /// None when the scene's ripples are off.
     pub simulation: Option<Simulation>,
-    pub key: CheckpointKey,
     pub coupling_depth_m: f64,
 }
 
 impl Dynamics {
+    /// The simulation's key (which reads the scene and every file it references) is made only
+    /// when ripples are on.
     pub fn new(scene: &Scene, characters: Vec<Character>) -> Result<Self, SnellError> {
-        let settings = ripple_settings(scene);
-        let key = simulation_key(scene, &characters, &settings)?;
         let ripples = &scene.water.ripples;
-        let simulation = ripples.enabled.then(|| {
-            Simulation::new(
+        let simulation = if ripples.enabled {
+            let settings = ripple_settings(scene);
+            let key = simulation_key(scene, &characters, &settings)?;
+            Some(Simulation::new(
                 settings,
                 ripples.strength,
                 scene.timeline.first_frame,
                 scene.timeline.fps,
-            )
-        });
+                key,
+            ))
+        } else {
+            None
+        };
         Ok(Dynamics {
             characters,
             simulation,
-            key,
             coupling_depth_m: ripples.coupling_depth_m,
         })
     }
 
-    /// Opens the checkpoint store under `out_dir` (stale ones of this scene are deleted; they are
-    /// listed in the returned message).
+    /// Reads and writes checkpoints under `out_dir` from now on; a note when stale checkpoints
+    /// of this scene were deleted.
     pub fn use_checkpoints(
         &self,
         out_dir: &Path,
@@ -251,32 +253,36 @@ impl Dynamics {
         let Some(simulation) = &self.simulation else {
             return Ok(None);
         };
-        if simulation.store().is_some() {
-            return Ok(None);
-        }
-        let store = CheckpointStore::open(out_dir, scene_name, self.key)
-            .map_err(|e| SnellError::Argument(e.to_string()))?;
-        let note = (!store.removed_stale.is_empty()).then(|| {
+        let removed = simulation.open_store(out_dir, scene_name)?;
+        Ok((!removed.is_empty()).then(|| {
             format!(
                 "removed stale simulation checkpoints (the scene or its assets changed): {}",
-                store
-                    .removed_stale
+                removed
                     .iter()
                     .map(|p| p.display().to_string())
                     .collect::<Vec<_>>()
                     .join(", ")
             )
-        });
-        simulation.set_store(store);
-        Ok(note)
+        }))
     }
 
-    /// The ripple state at `frame` (None when ripples are off).
+    /// Every character posed at `time_secs`, as world-space objects.
+    pub fn posed_objects(&self, time_secs: f64) -> Vec<Object> {
+        self.characters
+            .iter()
+            .flat_map(|c| c.objects(time_secs))
+            .collect()
+    }
+
+    /// The ripple state at `frame` (None when ripples are off). `posed_now` are the characters
+    /// posed at `frame` (the caller needs them anyway); other frames the simulation steps through
+    /// are posed here.
     pub fn ripples_at(
         &self,
         scene: &Scene,
         waves: &WaveField,
         frame: u32,
+        posed_now: &[Object],
     ) -> Result<Option<Arc<RippleState>>, SnellError> {
         let Some(simulation) = &self.simulation else {
             return Ok(None);
@@ -284,29 +290,26 @@ impl Dynamics {
         let occupancy = |f: u32| {
             let time_secs = scene.timeline.time_secs(f);
             let surface = waves.at(time_secs);
-            self.occupancy(simulation.settings(), &surface, time_secs)
+            let settings = simulation.settings();
+            if f == frame {
+                self.occupancy(settings, &surface, posed_now)
+            } else {
+                self.occupancy(settings, &surface, &self.posed_objects(time_secs))
+            }
         };
-        simulation
-            .state_at(frame, &occupancy)
-            .map(Some)
-            .map_err(|e| SnellError::Argument(e.to_string()))
+        Ok(Some(simulation.state_at(frame, &occupancy)?))
     }
 
-    /// The characters' occupancy of the ripple grid at `time_secs`.
-    pub fn occupancy(
+    /// The occupancy of the ripple grid by `posed` (characters' objects) against `surface`.
+    fn occupancy(
         &self,
         settings: &RippleSettings,
         surface: &dyn HeightField,
-        time_secs: f64,
+        posed: &[Object],
     ) -> Vec<f32> {
-        let posed: Vec<PosedPrimitive> = self
-            .characters
-            .iter()
-            .flat_map(|c| c.posed(time_secs))
-            .collect();
         let meshes: Vec<(&[Vec3], &[[u32; 3]])> = posed
             .iter()
-            .map(|p| (p.mesh.positions.as_slice(), p.mesh.triangles.as_slice()))
+            .map(|o| (o.mesh.positions.as_slice(), o.mesh.triangles.as_slice()))
             .collect();
         coupling::occupancy(settings, &meshes, surface, self.coupling_depth_m)
     }

@@ -219,34 +219,31 @@ impl RenderJob {
         let time_secs = self.scene.timeline.time_secs(frame);
         let camera = self.camera_track.sample(time_secs);
         let clock = Instant::now();
-        let ripples = self.dynamics.ripples_at(&self.scene, &self.waves, frame)?;
+        let posed = self.dynamics.posed_objects(time_secs);
+        stage_secs.insert("skinning".to_string(), clock.elapsed().as_secs_f64());
+        let clock = Instant::now();
+        let ripples = self
+            .dynamics
+            .ripples_at(&self.scene, &self.waves, frame, &posed)?;
         stage_secs.insert("ripples".to_string(), clock.elapsed().as_secs_f64());
         let waves_now = self.waves.at(time_secs);
         let surface = SumHeightField {
             base: &waves_now,
             ripples: ripples.as_ref().map(|state| state.field()),
         };
-        let clock = Instant::now();
-        let posed: Vec<Object> = self
-            .dynamics
-            .characters
-            .iter()
-            .flat_map(|c| c.objects(time_secs))
-            .collect();
+        // Characters widen the heights the search covers; the static objects' range is known.
+        let query_y_range = (
+            posed
+                .iter()
+                .flat_map(|o| o.mesh.positions.iter().map(|p| p.y))
+                .fold(self.query_y_range.0, f32::min),
+            self.query_y_range.1 + ripples.as_ref().map_or(0.0, |r| r.max_abs_height_m()),
+        );
         let objects: std::borrow::Cow<'_, [Object]> = if posed.is_empty() {
             std::borrow::Cow::Borrowed(&self.objects)
         } else {
             std::borrow::Cow::Owned(self.objects.iter().cloned().chain(posed).collect())
         };
-        stage_secs.insert("skinning".to_string(), clock.elapsed().as_secs_f64());
-        let ripple_reach_m = ripples.as_ref().map_or(0.0, |r| r.max_abs_height_m());
-        let query_y_range = (
-            objects
-                .iter()
-                .flat_map(|o| o.mesh.positions.iter().map(|p| p.y))
-                .fold(self.query_y_range.0, f32::min),
-            self.query_y_range.1 + ripple_reach_m,
-        );
         let water_at_eye = surface.height(camera.eye.x as f64, camera.eye.z as f64);
         if (camera.eye.y as f64) <= water_at_eye + 0.01 {
             return Err(SnellError::Frame {

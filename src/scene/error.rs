@@ -240,6 +240,17 @@ impl<'a> SourceMap<'a> {
         path
     }
 
+    /// The place of the value `path` names, kept for errors raised after validation.
+    pub fn source_ref(&self, path: &KeyPath) -> super::SourceRef {
+        let (line, column) = line_column_of(self.text, self.span_of(path).start);
+        super::SourceRef {
+            file: self.file.to_path_buf(),
+            line,
+            column,
+            key: path.to_string(),
+        }
+    }
+
     /// An error at the value `path` names.
     pub fn error(
         &self,

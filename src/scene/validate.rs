@@ -6,13 +6,12 @@ use std::sync::Arc;
 
 use glam::Vec3;
 
-use super::error::line_column_of;
 use super::error::{KeyPath, SourceMap};
 use super::format::{
     RawAnimation, RawCameraKey, RawCharacter, RawObject, RawRipples, RawScene, RawTexture, RawWater,
 };
 use super::primitives::DEFAULT_MAX_EDGE_M;
-use super::textures::{srgb_to_linear3, ImageSpec, LaneSpec, SourceRef, TextureSpec, TilesSpec};
+use super::textures::{srgb_to_linear3, ImageSpec, LaneSpec, TextureSpec, TilesSpec};
 use super::{
     AnimationChoice, CharacterSpec, ObjectSpec, PathKey, Playback, RippleSpec, Scene, SceneError,
     ShapeSpec, WaterSpec, WaveSpec,
@@ -402,15 +401,6 @@ fn character(
     timeline: &Timeline,
     map: &SourceMap<'_>,
 ) -> Result<CharacterSpec> {
-    let location = |path: &KeyPath| {
-        let (line, column) = line_column_of(map.text, map.span_of(path).start);
-        SourceRef {
-            file: map.file.to_path_buf(),
-            line,
-            column,
-            key: path.to_string(),
-        }
-    };
     let folder = map.file.parent().unwrap_or(Path::new(""));
     let file = folder.join(&raw.file);
     if !file.is_file() {
@@ -459,43 +449,18 @@ fn character(
     let mut path = Vec::new();
     for (i, key) in raw.path.iter().flatten().enumerate() {
         let key_at = at.key("path").index(i);
-        let (time_secs, time_key) = match (key.frame, key.time_secs) {
-            (Some(_), Some(_)) => {
-                return Err(map.error(
-                    &key_at.key("time_secs"),
-                    "both frame and time_secs are given",
-                    "keep one of them",
-                ))
-            }
-            (Some(frame), None) => (
-                (frame - timeline.first_frame as f64) / timeline.fps,
-                "frame",
-            ),
-            (None, Some(t)) => (t, "time_secs"),
-            (None, None) if raw.path.as_ref().is_some_and(|p| p.len() == 1) => (0.0, "position"),
-            (None, None) => {
-                return Err(map.error(
-                    &key_at,
-                    "a path keyframe needs a time when there are several",
-                    "add frame = N or time_secs = T",
-                ))
-            }
-        };
-        if let Some(previous) = path.last() {
-            let previous: &PathKey = previous;
-            if time_secs <= previous.time_secs {
-                return Err(map.error(
-                    &key_at.key(time_key),
-                    format!(
-                        "root-path keyframes are out of order: this one is at {time_secs:.3} s, \
-                         path[{}] before it at {:.3} s; keyframe times must increase",
-                        i - 1,
-                        previous.time_secs
-                    ),
-                    "reorder the [[character.path]] tables or correct this time",
-                ));
-            }
-        }
+        let time_secs = keyframe_time(
+            (key.frame, key.time_secs),
+            path.last().map(|k: &PathKey| k.time_secs),
+            KeyList {
+                noun: "root-path",
+                table: "[[character.path]]",
+                count: raw.path.as_ref().map_or(0, Vec::len),
+            },
+            &key_at,
+            timeline,
+            map,
+        )?;
         path.push(PathKey {
             time_secs,
             position_m: key.position,
@@ -525,8 +490,8 @@ fn character(
         scale,
         tint_srgb,
         path,
-        file_source: location(&at.key("file")),
-        animation_source: location(&if raw.animation.is_some() {
+        file_source: map.source_ref(&at.key("file")),
+        animation_source: map.source_ref(&if raw.animation.is_some() {
             at.key("animation")
         } else {
             at.clone()
@@ -566,42 +531,18 @@ fn camera_keys(
     let mut keys: Vec<CameraKey> = Vec::with_capacity(raw.len());
     for (i, key) in raw.iter().enumerate() {
         let at = path.index(i);
-        let (time_secs, time_key) = match (key.frame, key.time_secs) {
-            (Some(_), Some(_)) => {
-                return Err(map.error(
-                    &at.key("time_secs"),
-                    "both frame and time_secs are given",
-                    "keep one of them",
-                ))
-            }
-            (Some(frame), None) => (
-                (frame - timeline.first_frame as f64) / timeline.fps,
-                "frame",
-            ),
-            (None, Some(t)) => (t, "time_secs"),
-            (None, None) if raw.len() == 1 => (0.0, "eye"),
-            (None, None) => {
-                return Err(map.error(
-                    &at,
-                    "a camera keyframe needs a time when there are several",
-                    "add frame = N or time_secs = T",
-                ))
-            }
-        };
-        if let Some(previous) = keys.last() {
-            if time_secs <= previous.time_secs {
-                return Err(map.error(
-                    &at.key(time_key),
-                    format!(
-                        "camera keyframes must be in increasing time order: this one is at {time_secs:.3} s, \
-                         camera[{}] before it at {:.3} s",
-                        i - 1,
-                        previous.time_secs
-                    ),
-                    "reorder the [[camera]] tables or correct this time",
-                ));
-            }
-        }
+        let time_secs = keyframe_time(
+            (key.frame, key.time_secs),
+            keys.last().map(|k| k.time_secs),
+            KeyList {
+                noun: "camera",
+                table: "[[camera]]",
+                count: raw.len(),
+            },
+            &at,
+            timeline,
+            map,
+        )?;
         let eye = key.eye.map(|v| v as f32);
         let target = key.target.map(|v| v as f32);
         if key.eye[1] <= crest_m {
@@ -640,6 +581,64 @@ fn camera_keys(
         });
     }
     Ok(keys)
+}
+
+/// A list of keyframes, for [`keyframe_time`]'s messages.
+struct KeyList {
+    /// "camera", "root-path".
+    noun: &'static str,
+    /// The TOML tables the keys are written as.
+    table: &'static str,
+    count: usize,
+}
+
+/// A keyframe's time in seconds from `frame` or `time_secs` (a key alone in its list may have
+/// neither: t = 0), checked to come after the previous key's time.
+fn keyframe_time(
+    (frame, time_secs): (Option<f64>, Option<f64>),
+    previous_secs: Option<f64>,
+    list: KeyList,
+    at: &KeyPath,
+    timeline: &Timeline,
+    map: &SourceMap<'_>,
+) -> Result<f64> {
+    let (time_secs, time_key) = match (frame, time_secs) {
+        (Some(_), Some(_)) => {
+            return Err(map.error(
+                &at.key("time_secs"),
+                "both frame and time_secs are given",
+                "keep one of them",
+            ))
+        }
+        (Some(frame), None) => (
+            (frame - timeline.first_frame as f64) / timeline.fps,
+            "frame",
+        ),
+        (None, Some(t)) => (t, "time_secs"),
+        (None, None) if list.count == 1 => return Ok(0.0),
+        (None, None) => {
+            return Err(map.error(
+                at,
+                format!(
+                    "a {} keyframe needs a time when there are several",
+                    list.noun
+                ),
+                "add frame = N or time_secs = T",
+            ))
+        }
+    };
+    match previous_secs {
+        Some(previous) if time_secs <= previous => Err(map.error(
+            &at.key(time_key),
+            format!(
+                "{} keyframes are out of order: this one is at {time_secs:.3} s, the one before it \
+                 at {previous:.3} s; keys must be in increasing time order",
+                list.noun
+            ),
+            format!("reorder the {} tables or correct this time", list.table),
+        )),
+        _ => Ok(time_secs),
+    }
 }
 
 fn lighting(raw: &RawScene, map: &SourceMap<'_>) -> Result<Lighting> {
@@ -1165,17 +1164,10 @@ fn texture(
                     "set e.g. size_m = [1.0, 1.0]",
                 ));
             }
-            let span = map.span_of(&image_at);
-            let (line, column) = super::error::line_column_of(map.text, span.start);
             Ok(TextureSpec::Image(ImageSpec {
                 path,
                 size_m,
-                source: SourceRef {
-                    file: map.file.to_path_buf(),
-                    line,
-                    column,
-                    key: image_at.to_string(),
-                },
+                source: map.source_ref(&image_at),
             }))
         }
     }

@@ -9,6 +9,7 @@
 
 use std::fs;
 use std::io::Write;
+use std::ops::RangeInclusive;
 use std::path::{Path, PathBuf};
 
 use super::ripples::{RippleSettings, RippleState};
@@ -118,11 +119,11 @@ impl CheckpointStore {
         self.dir.join(format!("ripples-{frame:06}.bin"))
     }
 
-    /// The latest frame in `first..=frame` with a valid checkpoint, and its state.
-    pub fn latest_at_or_before(
+    /// The latest frame in `frames` with a valid checkpoint, and its state. Only checkpoints in
+    /// the range are read.
+    pub fn latest_in(
         &self,
-        frame: u32,
-        first: u32,
+        frames: RangeInclusive<u32>,
         settings: &RippleSettings,
     ) -> Option<(u32, RippleState)> {
         let mut frames: Vec<u32> = fs::read_dir(&self.dir)
@@ -135,7 +136,7 @@ impl CheckpointStore {
                     .parse::<u32>()
                     .ok()
             })
-            .filter(|&f| f >= first && f <= frame)
+            .filter(|f| frames.contains(f))
             .collect();
         frames.sort_unstable_by(|a, b| b.cmp(a));
         frames
@@ -261,12 +262,10 @@ mod tests {
         store.save(12, &state).unwrap();
         assert_eq!(store.load(12, &settings()), Some(state.clone()));
         assert_eq!(
-            store
-                .latest_at_or_before(20, 1, &settings())
-                .map(|(f, _)| f),
+            store.latest_in(1..=20, &settings()).map(|(f, _)| f),
             Some(12)
         );
-        assert_eq!(store.latest_at_or_before(11, 1, &settings()), None);
+        assert_eq!(store.latest_in(1..=11, &settings()), None);
         // Another grid size: refused.
         let mut other = settings();
         other.nodes_x = 4;
@@ -301,6 +300,6 @@ mod tests {
             other_scene.dir().exists(),
             "other scenes' checkpoints are kept"
         );
-        assert_eq!(new.latest_at_or_before(10, 1, &settings()), None);
+        assert_eq!(new.latest_in(1..=10, &settings()), None);
     }
 }

@@ -91,15 +91,8 @@ pub fn displacement(
 /// neighbourhood, mirrored back in at the border.
 fn box3(values: &[f32], nx: usize, nz: usize) -> Vec<f32> {
     let mut out = vec![0.0f32; values.len()];
-    let mirror = |i: isize, n: usize| -> usize {
-        if i < 0 {
-            0
-        } else if i as usize >= n {
-            n - 1
-        } else {
-            i as usize
-        }
-    };
+    // A share that would leave the grid lands on the edge node instead.
+    let mirror = |i: isize, n: usize| i.clamp(0, n as isize - 1) as usize;
     for iz in 0..nz {
         for ix in 0..nx {
             let share = values[iz * nx + ix] / 9.0;

@@ -13,6 +13,8 @@ pub mod coupling;
 pub mod ripples;
 
 use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, OnceLock};
 
 pub use checkpoint::{CheckpointError, CheckpointKey, CheckpointStore, KeyHasher};
@@ -24,6 +26,14 @@ pub use ripples::{
 /// what a render asks for; a few more make scrubbing back cheap).
 const STATES_KEPT: usize = 4;
 
+/// A state kept in memory, with the occupancy of its frame when it was computed (stepping on
+/// from it then needs no new occupancy of that frame).
+#[derive(Clone)]
+struct Kept {
+    state: Arc<RippleState>,
+    occupancy: Option<Arc<Vec<f32>>>,
+}
+
 /// The ripple simulation of one scene.
 pub struct Simulation {
     stepper: RippleStepper,
@@ -31,13 +41,15 @@ pub struct Simulation {
     strength: f64,
     first_frame: u32,
     frame_secs: f64,
+    /// What checkpoints of this simulation are keyed by.
+    key: CheckpointKey,
     store: OnceLock<CheckpointStore>,
-    recent: Mutex<BTreeMap<u32, Arc<RippleState>>>,
-    /// Frames stepped (not read) since creation: how much work checkpoints saved, for reports.
-    stepped: Mutex<u64>,
+    recent: Mutex<BTreeMap<u32, Kept>>,
+    /// Frames stepped (not read) since creation: how much work checkpoints saved.
+    stepped: AtomicU64,
 }
 
-/// Where [`Simulation::state_at`] got a state from.
+/// Where [`Simulation::state_at`] would start from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum StateSource {
     Memory,
@@ -46,15 +58,22 @@ pub enum StateSource {
 }
 
 impl Simulation {
-    pub fn new(settings: RippleSettings, strength: f64, first_frame: u32, fps: f64) -> Self {
+    pub fn new(
+        settings: RippleSettings,
+        strength: f64,
+        first_frame: u32,
+        fps: f64,
+        key: CheckpointKey,
+    ) -> Self {
         Simulation {
             stepper: RippleStepper::new(settings),
             strength,
             first_frame,
             frame_secs: 1.0 / fps,
+            key,
             store: OnceLock::new(),
             recent: Mutex::new(BTreeMap::new()),
-            stepped: Mutex::new(0),
+            stepped: AtomicU64::new(0),
         }
     }
 
@@ -62,79 +81,99 @@ impl Simulation {
         self.stepper.settings()
     }
 
-    /// Reads and writes checkpoints in `store` from now on. A simulation has one store for its
-    /// lifetime: a second call is ignored and returns false.
-    pub fn set_store(&self, store: CheckpointStore) -> bool {
-        self.store.set(store).is_ok()
+    /// Reads and writes checkpoints under `out_dir` from now on (see [`CheckpointStore::open`]);
+    /// returns the stale folders of `scene_stem` it deleted. A simulation keeps the first store
+    /// it opens: later calls do nothing.
+    pub fn open_store(
+        &self,
+        out_dir: &Path,
+        scene_stem: &str,
+    ) -> Result<Vec<PathBuf>, CheckpointError> {
+        if self.store.get().is_some() {
+            return Ok(Vec::new());
+        }
+        let store = CheckpointStore::open(out_dir, scene_stem, self.key)?;
+        let removed = store.removed_stale.clone();
+        // A racing call may have set one first; both are the same folder.
+        let _ = self.store.set(store);
+        Ok(removed)
     }
 
     pub fn store(&self) -> Option<&CheckpointStore> {
         self.store.get()
     }
 
-    /// Frames stepped so far (each one an occupancy pair and a frame of substeps).
+    /// Frames stepped so far (each one an occupancy and a frame of substeps).
     pub fn frames_stepped(&self) -> u64 {
-        *self.stepped.lock().unwrap()
+        self.stepped.load(Ordering::Relaxed)
+    }
+
+    /// The latest state in memory at or before `frame`.
+    fn remembered(&self, frame: u32) -> Option<(u32, Kept)> {
+        let recent = self.recent.lock().unwrap();
+        recent
+            .range(..=frame)
+            .next_back()
+            .map(|(&f, kept)| (f, kept.clone()))
+    }
+
+    /// The latest valid checkpoint in `after + 1..=frame` (only those are read).
+    fn checkpoint_after(&self, after: Option<u32>, frame: u32) -> Option<(u32, RippleState)> {
+        let from = after.map_or(self.first_frame, |f| f + 1);
+        self.store.get()?.latest_in(from..=frame, self.settings())
     }
 
     /// The ripple state at `frame` (>= the first frame). `occupancy(f)` must return the
     /// characters' occupancy at frame `f` (see [`coupling::occupancy`]); it is called for the
-    /// frames stepped through. Checkpoints of the frames stepped are written when a store is set.
+    /// frames stepped through. Starts from the latest of: a state in memory, a checkpoint, calm
+    /// water at the first frame. Checkpoints of the frames stepped are written when a store is set.
     pub fn state_at(
         &self,
         frame: u32,
         occupancy: &dyn Fn(u32) -> Vec<f32>,
     ) -> Result<Arc<RippleState>, CheckpointError> {
         let frame = frame.max(self.first_frame);
-        let settings = *self.settings();
-        // The nearest earlier state: memory, then disk, then calm water at the first frame.
-        let from_memory = {
-            let recent = self.recent.lock().unwrap();
-            recent
-                .range(..=frame)
-                .next_back()
-                .map(|(&f, state)| (f, state.clone()))
-        };
-        let from_disk = |after: u32| {
-            self.store.get().and_then(|store| {
-                store
-                    .latest_at_or_before(frame, self.first_frame, &settings)
-                    .filter(|(f, _)| *f > after)
-            })
-        };
-        let (mut at, mut state) = match from_memory {
-            Some((f, state)) if f == frame => return Ok(state),
-            Some((f, state)) => match from_disk(f) {
-                Some((g, loaded)) => (g, loaded),
-                None => (f, (*state).clone()),
-            },
-            None => match from_disk(self.first_frame.saturating_sub(1)) {
-                Some((g, loaded)) if g >= self.first_frame => (g, loaded),
-                _ => (self.first_frame, RippleState::calm(settings)),
-            },
-        };
-        if at == self.first_frame {
-            self.save(at, &state)?;
+        let remembered = self.remembered(frame);
+        if let Some((f, kept)) = &remembered {
+            if *f == frame {
+                return Ok(kept.state.clone());
+            }
         }
-        let mut occupancy_before = (at < frame).then(|| occupancy(at));
+        let checkpoint = self.checkpoint_after(remembered.as_ref().map(|(f, _)| *f), frame);
+        let (mut at, mut state, kept_occupancy) = match (checkpoint, remembered) {
+            (Some((f, loaded)), _) => (f, loaded, None),
+            (None, Some((f, kept))) => (f, (*kept.state).clone(), kept.occupancy),
+            (None, None) => {
+                let calm = RippleState::calm(*self.settings());
+                self.save(self.first_frame, &calm)?;
+                (self.first_frame, calm, None)
+            }
+        };
+        let mut occupancy_at = kept_occupancy.unwrap_or_else(|| Arc::new(occupancy(at)));
         while at < frame {
-            let occupancy_now = occupancy(at + 1);
+            let occupancy_next = Arc::new(occupancy(at + 1));
             let push = coupling::displacement(
-                &settings,
-                occupancy_before.as_deref().unwrap_or(&[]),
-                &occupancy_now,
+                self.settings(),
+                &occupancy_at,
+                &occupancy_next,
                 self.strength,
             );
             self.stepper
                 .advance_frame(&mut state, self.frame_secs, &push);
             at += 1;
-            *self.stepped.lock().unwrap() += 1;
+            self.stepped.fetch_add(1, Ordering::Relaxed);
             self.save(at, &state)?;
-            occupancy_before = Some(occupancy_now);
+            occupancy_at = occupancy_next;
         }
         let state = Arc::new(state);
         let mut recent = self.recent.lock().unwrap();
-        recent.insert(frame, state.clone());
+        recent.insert(
+            frame,
+            Kept {
+                state: state.clone(),
+                occupancy: Some(occupancy_at),
+            },
+        );
         while recent.len() > STATES_KEPT {
             let oldest = *recent.keys().next().unwrap();
             recent.remove(&oldest);
@@ -142,24 +181,17 @@ impl Simulation {
         Ok(state)
     }
 
-    /// Which source `state_at(frame)` would start from (for reports and tests).
+    /// Which source `state_at(frame)` would start from.
     pub fn source_for(&self, frame: u32) -> StateSource {
-        if self.recent.lock().unwrap().contains_key(&frame) {
+        let remembered = self.remembered(frame).map(|(f, _)| f);
+        if remembered == Some(frame) {
             return StateSource::Memory;
         }
-        match self
-            .store
-            .get()
-            .and_then(|store| store.latest_at_or_before(frame, self.first_frame, self.settings()))
-        {
+        match self.checkpoint_after(remembered, frame) {
             Some((f, _)) => StateSource::Checkpoint(f),
+            None if remembered.is_some() => StateSource::Memory,
             None => StateSource::Calm,
         }
-    }
-
-    /// Forgets the in-memory states (checkpoints on disk stay).
-    pub fn forget_memory(&self) {
-        self.recent.lock().unwrap().clear();
     }
 
     fn save(&self, frame: u32, state: &RippleState) -> Result<(), CheckpointError> {
@@ -201,27 +233,37 @@ mod tests {
 
     #[test]
     fn a_frame_is_the_same_reached_from_the_start_from_memory_or_from_a_checkpoint() {
-        let full = Simulation::new(settings(), 1.0, 1, 24.0);
+        let dir = tempfile::tempdir().unwrap();
+        let key = KeyHasher::new("test").input("scene", b"x").finish();
+        let simulation = || Simulation::new(settings(), 1.0, 1, 24.0, key);
+        let full = simulation();
+        let calls = std::sync::atomic::AtomicUsize::new(0);
+        let counted = |f: u32| {
+            calls.fetch_add(1, Ordering::Relaxed);
+            occupancy(f)
+        };
         let straight: Vec<Arc<RippleState>> = (1..=30)
-            .map(|f| full.state_at(f, &occupancy).unwrap())
+            .map(|f| full.state_at(f, &counted).unwrap())
             .collect();
+        // Frame by frame, each frame's occupancy is computed once.
+        assert_eq!(calls.load(Ordering::Relaxed), 30);
         assert!(
             straight[29].max_abs_height_m() > 0.0,
             "the body made ripples"
         );
 
         // Alone, from calm water, jumping straight to frame 30.
-        let alone = Simulation::new(settings(), 1.0, 1, 24.0);
+        let alone = simulation();
         assert_eq!(*alone.state_at(30, &occupancy).unwrap(), *straight[29]);
 
         // Through checkpoints: a first run writes them, a second reads frame 20's and steps on.
-        let dir = tempfile::tempdir().unwrap();
-        let key = KeyHasher::new("test").input("scene", b"x").finish();
-        let first = Simulation::new(settings(), 1.0, 1, 24.0);
-        first.set_store(CheckpointStore::open(dir.path(), "s", key).unwrap());
-        first.state_at(20, &occupancy).unwrap();
-        let second = Simulation::new(settings(), 1.0, 1, 24.0);
-        second.set_store(CheckpointStore::open(dir.path(), "s", key).unwrap());
+        let with_store = || {
+            let s = simulation();
+            s.open_store(dir.path(), "s").unwrap();
+            s
+        };
+        with_store().state_at(20, &occupancy).unwrap();
+        let second = with_store();
         assert_eq!(second.source_for(26), StateSource::Checkpoint(20));
         assert_eq!(*second.state_at(26, &occupancy).unwrap(), *straight[25]);
         assert_eq!(
@@ -230,11 +272,7 @@ mod tests {
             "resumed from frame 20, not recomputed"
         );
         // An exact checkpoint hit steps nothing.
-        let third = {
-            let s = Simulation::new(settings(), 1.0, 1, 24.0);
-            s.set_store(CheckpointStore::open(dir.path(), "s", key).unwrap());
-            s
-        };
+        let third = with_store();
         assert_eq!(*third.state_at(24, &occupancy).unwrap(), *straight[23]);
         assert_eq!(third.frames_stepped(), 0);
         // Backwards from memory: an earlier frame than the cached ones is recomputed correctly.
