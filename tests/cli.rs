@@ -253,3 +253,86 @@ fn info_describes_the_scene() {
         );
     }
 }
+
+/// A file of the repository, as an absolute path a scene in a temporary folder can name.
+fn repo_file(relative: &str) -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join(relative)
+        .to_str()
+        .unwrap()
+        .to_string()
+}
+
+/// tiny.toml with one `[[character]]` table (`body` are its lines) appended; expects an error
+/// naming bad.toml, the line holding `marked`, and each of `needles`.
+fn expect_bad_character(body: &str, marked: &str, needles: &[&str]) {
+    let text = format!("{TINY}\n[[character]]\n{body}\n");
+    let mut all = vec!["bad.toml".to_string(), line_marker(&text, marked)];
+    all.extend(needles.iter().map(|n| n.to_string()));
+    expect_bad_input(&text, &all.iter().map(String::as_str).collect::<Vec<_>>());
+}
+
+#[test]
+fn missing_gltf_file_is_named() {
+    expect_bad_character(
+        "file = \"models/nowhere.glb\"",
+        "nowhere.glb",
+        &["character[0].file", "nowhere.glb", "cannot find"],
+    );
+}
+
+#[test]
+fn broken_gltf_files_are_named_with_their_cause() {
+    let cases = [
+        (
+            "tests/gltf/short_buffer.gltf",
+            vec!["short_buffer.gltf", "truncated"],
+        ),
+        (
+            "tests/gltf/missing_buffer.gltf",
+            vec!["missing_buffer.gltf", "cannot be read"],
+        ),
+        (
+            "tests/gltf/joint_out_of_range.gltf",
+            vec!["joint_out_of_range.gltf", "joint index", "out of range"],
+        ),
+        (
+            "tests/gltf/zero_weights.gltf",
+            vec!["zero_weights.gltf", "weights sum to zero"],
+        ),
+    ];
+    for (file, mut needles) in cases {
+        needles.push("character[0].file");
+        let path = repo_file(file);
+        expect_bad_character(&format!("file = {path:?}"), "file =", &needles);
+    }
+}
+
+#[test]
+fn unknown_animation_lists_the_ones_that_exist() {
+    let fox = repo_file("scenes/assets/Fox.glb");
+    expect_bad_character(
+        &format!("file = {fox:?}\nanimation = \"Gallop\""),
+        "Gallop",
+        &[
+            "character[0].animation",
+            "\"Gallop\"",
+            "\"Survey\"",
+            "\"Walk\"",
+            "\"Run\"",
+        ],
+    );
+}
+
+#[test]
+fn root_path_keyframes_out_of_order_are_refused() {
+    let fox = repo_file("scenes/assets/Fox.glb");
+    expect_bad_character(
+        &format!(
+            "file = {fox:?}\n\n[[character.path]]\nframe = 10\nposition = [0.0, 0.0, 0.0]\n\n\
+             [[character.path]]\nframe = 4\nposition = [1.0, 0.0, 0.0]"
+        ),
+        "frame = 4",
+        &["character[0].path[1].frame", "out of order"],
+    );
+}
