@@ -61,3 +61,65 @@ fn same_frame_twice_gives_identical_pixels_and_alone_equals_in_sequence() {
     );
     assert_eq!(first_cpu.counts, twelve.counts);
 }
+
+/// The ripple state at a frame depends on every earlier frame. Frames 40-48 of `fox_wading.toml`
+/// rendered alone (the ripples stepped from frame 1 in memory) and rendered by a later job that
+/// resumes from the full run's checkpoints equal, pixel for pixel, those frames of the full 1-48 run.
+#[test]
+fn fox_frames_40_to_48_alone_equal_those_of_the_full_run() {
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/fox_wading.toml");
+    let (w, h) = (96, 54);
+    let checkpoints = tempfile::tempdir().unwrap();
+    let mut renderer = Renderer::new().unwrap();
+
+    // The full run, in sequence, writing checkpoints.
+    let full = RenderJob::prepare(&scene).unwrap();
+    full.use_checkpoints(checkpoints.path()).unwrap();
+    full.upload_textures(&mut renderer).unwrap();
+    let mut previous = None;
+    let mut expected = Vec::new();
+    for frame in 1..=48 {
+        let mut refracted = full.refract(frame, w, h, previous.as_ref()).unwrap();
+        let rendered = full
+            .render_refracted(&mut renderer, &mut refracted, w, h)
+            .unwrap();
+        if frame >= 40 {
+            expected.push((bits(&rendered), refracted.counts));
+        }
+        previous = Some(refracted.tracking);
+    }
+    let simulation = full.dynamics.simulation.as_ref().expect("ripples are on");
+    let ripples_at_40 = simulation
+        .store()
+        .unwrap()
+        .load(40, simulation.settings())
+        .expect("the full run checkpointed frame 40");
+    assert!(
+        ripples_at_40.max_abs_height_m() > 1e-4,
+        "the fox made ripples by frame 40 (else this test checks nothing)"
+    );
+
+    // Alone, without checkpoints; then a new job resuming from the checkpoints.
+    let alone = RenderJob::prepare(&scene).unwrap();
+    let resumed = RenderJob::prepare(&scene).unwrap();
+    resumed.use_checkpoints(checkpoints.path()).unwrap();
+    for (job, how) in [(&alone, "alone"), (&resumed, "from checkpoints")] {
+        for (frame, (pixels, counts)) in (40..=48).zip(&expected) {
+            let (refracted, rendered) = job.render_frame(&mut renderer, frame, w, h).unwrap();
+            assert!(
+                bits(&rendered) == *pixels,
+                "frame {frame} rendered {how} differs from the full run"
+            );
+            assert_eq!(
+                refracted.counts, *counts,
+                "frame {frame} {how}: flag counts"
+            );
+        }
+    }
+    let resumed_simulation = resumed.dynamics.simulation.as_ref().unwrap();
+    assert_eq!(
+        resumed_simulation.frames_stepped(),
+        0,
+        "the resumed job read every state from checkpoints"
+    );
+}

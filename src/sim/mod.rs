@@ -149,21 +149,18 @@ impl Simulation {
                 (self.first_frame, calm, None)
             }
         };
-        let mut occupancy_at = kept_occupancy.unwrap_or_else(|| Arc::new(occupancy(at)));
+        // The occupancy of the frame `state` is at: needed only to step on from it.
+        let mut occupancy_at = kept_occupancy;
         while at < frame {
-            let occupancy_next = Arc::new(occupancy(at + 1));
-            let push = coupling::displacement(
-                self.settings(),
-                &occupancy_at,
-                &occupancy_next,
-                self.strength,
-            );
+            let before = occupancy_at.unwrap_or_else(|| Arc::new(occupancy(at)));
+            let after = Arc::new(occupancy(at + 1));
+            let push = coupling::displacement(self.settings(), &before, &after, self.strength);
             self.stepper
                 .advance_frame(&mut state, self.frame_secs, &push);
             at += 1;
             self.stepped.fetch_add(1, Ordering::Relaxed);
             self.save(at, &state)?;
-            occupancy_at = occupancy_next;
+            occupancy_at = Some(after);
         }
         let state = Arc::new(state);
         let mut recent = self.recent.lock().unwrap();
@@ -171,7 +168,7 @@ impl Simulation {
             frame,
             Kept {
                 state: state.clone(),
-                occupancy: Some(occupancy_at),
+                occupancy: occupancy_at,
             },
         );
         while recent.len() > STATES_KEPT {
@@ -263,6 +260,12 @@ mod tests {
             s
         };
         with_store().state_at(20, &occupancy).unwrap();
+        // A state read from its own checkpoint needs no occupancy at all.
+        let untouched = |_: u32| -> Vec<f32> { panic!("nothing to step") };
+        assert_eq!(
+            *with_store().state_at(20, &untouched).unwrap(),
+            *straight[19]
+        );
         let second = with_store();
         assert_eq!(second.source_for(26), StateSource::Checkpoint(20));
         assert_eq!(*second.state_at(26, &occupancy).unwrap(), *straight[25]);
