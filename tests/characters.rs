@@ -26,6 +26,21 @@ fn load_err(path: &Path) -> CharacterError {
     }
 }
 
+/// Writes `contents` to `dir/name` and loads it, expecting an error.
+fn load_err_written(dir: &Path, name: &str, contents: impl AsRef<[u8]>) -> CharacterError {
+    let path = dir.join(name);
+    std::fs::write(&path, contents).unwrap();
+    load_err(&path)
+}
+
+/// The error's message contains every one of `parts`.
+fn assert_mentions(error: &CharacterError, parts: &[&str]) {
+    let message = error.to_string();
+    for part in parts {
+        assert!(message.contains(part), "{message:?} lacks {part:?}");
+    }
+}
+
 /// Positions of the first posed primitive at `time_secs` of animation 0, model = world space.
 fn posed_positions(asset: &CharacterAsset, time_secs: f32) -> Vec<Vec3> {
     let pose = asset.pose(Some(0), time_secs);
@@ -643,16 +658,16 @@ fn joint_index_out_of_range_is_reported() {
         ),
         "{error:?}"
     );
-    let message = error.to_string();
-    for part in [
-        "joint_out_of_range.gltf",
-        "rig/primitive 0",
-        "vertex 1",
-        "joint index 5",
-        "2 joints",
-    ] {
-        assert!(message.contains(part), "{message:?} lacks {part:?}");
-    }
+    assert_mentions(
+        &error,
+        &[
+            "joint_out_of_range.gltf",
+            "rig/primitive 0",
+            "vertex 1",
+            "joint index 5",
+            "2 joints",
+        ],
+    );
 }
 
 #[test]
@@ -662,15 +677,15 @@ fn weights_summing_to_zero_are_reported() {
         matches!(error, CharacterError::ZeroWeights { vertex: 2, .. }),
         "{error:?}"
     );
-    let message = error.to_string();
-    for part in [
-        "zero_weights.gltf",
-        "rig/primitive 0",
-        "vertex 2",
-        "sum to zero",
-    ] {
-        assert!(message.contains(part), "{message:?} lacks {part:?}");
-    }
+    assert_mentions(
+        &error,
+        &[
+            "zero_weights.gltf",
+            "rig/primitive 0",
+            "vertex 2",
+            "sum to zero",
+        ],
+    );
 }
 
 #[test]
@@ -680,16 +695,16 @@ fn short_external_buffer_is_truncated() {
         matches!(error, CharacterError::TruncatedBuffer { buffer: 0, .. }),
         "{error:?}"
     );
-    let message = error.to_string();
-    for part in [
-        "short_buffer.gltf",
-        "short_buffer.bin",
-        "truncated",
-        "258 bytes",
-        "byteLength is 268",
-    ] {
-        assert!(message.contains(part), "{message:?} lacks {part:?}");
-    }
+    assert_mentions(
+        &error,
+        &[
+            "short_buffer.gltf",
+            "short_buffer.bin",
+            "truncated",
+            "258 bytes",
+            "byteLength is 268",
+        ],
+    );
 }
 
 #[test]
@@ -699,11 +714,7 @@ fn missing_external_buffer_is_reported() {
         matches!(error, CharacterError::MissingBuffer { buffer: 0, .. }),
         "{error:?}"
     );
-    let message = error.to_string();
-    assert!(
-        message.contains("missing_buffer.gltf") && message.contains("does_not_exist.bin"),
-        "{message}"
-    );
+    assert_mentions(&error, &["missing_buffer.gltf", "does_not_exist.bin"]);
 }
 
 #[test]
@@ -712,24 +723,17 @@ fn truncated_glb_is_reported() {
     let dir = tempfile::tempdir().unwrap();
 
     // Cut inside the BIN chunk: the buffer is short.
-    let cut = dir.path().join("cut.glb");
-    std::fs::write(&cut, &original[..original.len() - 1000]).unwrap();
-    let error = load_err(&cut);
+    let error = load_err_written(dir.path(), "cut.glb", &original[..original.len() - 1000]);
     assert!(
         matches!(error, CharacterError::TruncatedBuffer { buffer: 0, .. }),
         "{error:?}"
     );
-    let message = error.to_string();
-    for part in ["cut.glb", "GLB BIN chunk", "truncated", "14104"] {
-        assert!(message.contains(part), "{message:?} lacks {part:?}");
-    }
+    assert_mentions(&error, &["cut.glb", "GLB BIN chunk", "truncated", "14104"]);
 
     // Cut inside the JSON chunk: not a usable glTF at all.
-    let head = dir.path().join("head.glb");
-    std::fs::write(&head, &original[..100]).unwrap();
-    let error = load_err(&head);
+    let error = load_err_written(dir.path(), "head.glb", &original[..100]);
     assert!(matches!(error, CharacterError::NotGltf { .. }), "{error:?}");
-    assert!(error.to_string().contains("head.glb"), "{error}");
+    assert_mentions(&error, &["head.glb"]);
 }
 
 #[test]
@@ -738,56 +742,42 @@ fn unreadable_and_non_gltf_files_are_reported() {
     let missing = dir.path().join("nobody.glb");
     let error = load_err(&missing);
     assert!(matches!(error, CharacterError::Read { .. }), "{error:?}");
-    assert!(error.to_string().contains("nobody.glb"));
+    assert_mentions(&error, &["nobody.glb"]);
 
-    let text = dir.path().join("notes.gltf");
-    std::fs::write(&text, "this is not JSON").unwrap();
-    let error = load_err(&text);
+    let error = load_err_written(dir.path(), "notes.gltf", "this is not JSON");
     assert!(matches!(error, CharacterError::NotGltf { .. }), "{error:?}");
-    assert!(error.to_string().contains("notes.gltf") && error.to_string().contains("broken JSON"));
+    assert_mentions(&error, &["notes.gltf", "broken JSON"]);
 
     // Valid JSON that references a missing accessor: fails glTF validation.
-    let invalid = dir.path().join("invalid.gltf");
-    std::fs::write(
-        &invalid,
+    let error = load_err_written(
+        dir.path(),
+        "invalid.gltf",
         r#"{"asset":{"version":"2.0"},"meshes":[{"primitives":[{"attributes":{"POSITION":7}}]}]}"#,
-    )
-    .unwrap();
-    let error = load_err(&invalid);
-    assert!(matches!(error, CharacterError::NotGltf { .. }), "{error:?}");
-    assert!(
-        error.to_string().contains("POSITION is accessor 7"),
-        "{error}"
     );
+    assert!(matches!(error, CharacterError::NotGltf { .. }), "{error:?}");
+    assert_mentions(&error, &["POSITION is accessor 7"]);
 
     // Valid JSON, glTF validation fails (POSITION without min/max, no buffer view 3).
-    let incomplete = dir.path().join("incomplete.gltf");
-    std::fs::write(
-        &incomplete,
+    let error = load_err_written(
+        dir.path(),
+        "incomplete.gltf",
         r#"{"asset":{"version":"2.0"},"accessors":[{"bufferView":3,"componentType":5126,"count":3,"type":"VEC3"}],
             "meshes":[{"primitives":[{"attributes":{"POSITION":0}}]}]}"#,
-    )
-    .unwrap();
-    let error = load_err(&incomplete);
+    );
     assert!(matches!(error, CharacterError::NotGltf { .. }), "{error:?}");
-    assert!(error.to_string().contains("incomplete.gltf"), "{error}");
+    assert_mentions(&error, &["incomplete.gltf"]);
 
-    let draco = dir.path().join("draco.gltf");
-    std::fs::write(
-        &draco,
+    let error = load_err_written(
+        dir.path(),
+        "draco.gltf",
         r#"{"asset":{"version":"2.0"},"extensionsUsed":["KHR_draco_mesh_compression"],
             "extensionsRequired":["KHR_draco_mesh_compression"]}"#,
-    )
-    .unwrap();
-    let error = load_err(&draco);
+    );
     assert!(
         matches!(error, CharacterError::Unsupported { .. }),
         "{error:?}"
     );
-    assert!(
-        error.to_string().contains("KHR_draco_mesh_compression")
-            && error.to_string().contains("draco.gltf")
-    );
+    assert_mentions(&error, &["KHR_draco_mesh_compression", "draco.gltf"]);
 }
 
 #[test]
@@ -800,16 +790,16 @@ fn unknown_animation_lists_what_exists() {
         matches!(error, CharacterError::AnimationNotFound { .. }),
         "{error:?}"
     );
-    let message = error.to_string();
-    for part in [
-        "Fox.glb",
-        "\"Trot\"",
-        "0: \"Survey\"",
-        "1: \"Walk\"",
-        "2: \"Run\"",
-    ] {
-        assert!(message.contains(part), "{message:?} lacks {part:?}");
-    }
+    assert_mentions(
+        &error,
+        &[
+            "Fox.glb",
+            "\"Trot\"",
+            "0: \"Survey\"",
+            "1: \"Walk\"",
+            "2: \"Run\"",
+        ],
+    );
     let error = fox
         .resolve_animation(&AnimationSelector::Index(3))
         .unwrap_err();
@@ -824,7 +814,7 @@ fn unknown_animation_lists_what_exists() {
         ),
         "{error:?}"
     );
-    assert!(error.to_string().contains("Fox.glb"));
+    assert_mentions(&error, &["Fox.glb"]);
 
     let rigged = load("scenes/assets/RiggedSimple.glb");
     let message = rigged

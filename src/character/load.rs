@@ -17,7 +17,7 @@ use gltf::mesh::{Mode, Semantic};
 
 use super::animation::{Animation, Channel, Interpolation, Property};
 use super::{
-    smooth_normals, zero_uvs, AnimationInfo, CharacterAsset, CharacterError, DrawItem, Influences,
+    smooth_normals, AnimationInfo, CharacterAsset, CharacterError, DrawItem, Influences,
     LocalTransform, Node, Primitive, Skin,
 };
 use crate::mesh::{Mesh, Texture};
@@ -133,13 +133,7 @@ pub(super) fn load(path: &Path) -> Result<CharacterAsset, CharacterError> {
     let gltf_nodes: Vec<gltf::Node> = document.nodes().collect();
     while let Some(node_index) = stack.pop() {
         let node = &gltf_nodes[node_index];
-        stack.extend(
-            node.children()
-                .map(|child| child.index())
-                .collect::<Vec<_>>()
-                .into_iter()
-                .rev(),
-        );
+        stack.extend(nodes[node_index].children.iter().rev());
         let Some(mesh) = node.mesh() else { continue };
         if let std::collections::hash_map::Entry::Vacant(entry) =
             primitives_of_mesh.entry(mesh.index())
@@ -351,6 +345,17 @@ fn has_scheme(uri: &str) -> bool {
     }
 }
 
+/// How a buffer is named in messages: the GLB BIN chunk, an embedded data URI, or its file URI.
+fn buffer_source_name(buffer: &gltf::Buffer) -> String {
+    match buffer.source() {
+        gltf::buffer::Source::Bin => "GLB BIN chunk".to_string(),
+        gltf::buffer::Source::Uri(uri) if uri.starts_with("data:") => {
+            "embedded data URI".to_string()
+        }
+        gltf::buffer::Source::Uri(uri) => uri.to_string(),
+    }
+}
+
 fn dimensions_name(dimensions: Dimensions) -> &'static str {
     match dimensions {
         Dimensions::Scalar => "SCALAR",
@@ -392,39 +397,34 @@ impl Loader {
     ) -> Result<(), CharacterError> {
         for buffer in document.buffers() {
             let index = buffer.index();
-            let (data, source_name) = match buffer.source() {
+            let source_name = buffer_source_name(&buffer);
+            let data = match buffer.source() {
                 gltf::buffer::Source::Bin => match container.bin {
-                    Some(bin) => (bin.to_vec(), "GLB BIN chunk".to_string()),
+                    Some(bin) => bin.to_vec(),
                     None => {
                         return Err(CharacterError::MissingBuffer {
                             path: self.path.clone(),
                             buffer: index,
-                            source_name: "GLB BIN chunk".to_string(),
+                            source_name,
                             reason: "the file has no BIN chunk".to_string(),
                         })
                     }
                 },
-                gltf::buffer::Source::Uri(uri) if uri.starts_with("data:") => {
-                    let data = decode_data_uri(uri).map_err(|reason| {
-                        CharacterError::UndecodableBuffer {
-                            path: self.path.clone(),
-                            buffer: index,
-                            source_name: "embedded data URI".to_string(),
-                            reason,
-                        }
-                    })?;
-                    (data, "embedded data URI".to_string())
-                }
+                gltf::buffer::Source::Uri(uri) if uri.starts_with("data:") => decode_data_uri(uri)
+                    .map_err(|reason| CharacterError::UndecodableBuffer {
+                        path: self.path.clone(),
+                        buffer: index,
+                        source_name: source_name.clone(),
+                        reason,
+                    })?,
                 gltf::buffer::Source::Uri(uri) => {
-                    let data = self.read_relative(uri).map_err(|reason| {
-                        CharacterError::MissingBuffer {
+                    self.read_relative(uri)
+                        .map_err(|reason| CharacterError::MissingBuffer {
                             path: self.path.clone(),
                             buffer: index,
-                            source_name: uri.to_string(),
+                            source_name: source_name.clone(),
                             reason,
-                        }
-                    })?;
-                    (data, uri.to_string())
+                        })?
                 }
             };
             if data.len() < buffer.length() {
@@ -450,13 +450,6 @@ impl Loader {
 
     /// Every buffer view inside its buffer, every accessor (and sparse part) inside its view.
     fn check_views_and_accessors(&self, document: &gltf::Document) -> Result<(), CharacterError> {
-        let buffer_name = |buffer: &gltf::Buffer| match buffer.source() {
-            gltf::buffer::Source::Bin => "GLB BIN chunk".to_string(),
-            gltf::buffer::Source::Uri(uri) if uri.starts_with("data:") => {
-                "embedded data URI".to_string()
-            }
-            gltf::buffer::Source::Uri(uri) => uri.to_string(),
-        };
         for view in document.views() {
             let buffer = view.buffer();
             let available = self.buffers[buffer.index()].len();
@@ -465,7 +458,7 @@ impl Loader {
                 return Err(CharacterError::TruncatedBuffer {
                     path: self.path.clone(),
                     buffer: buffer.index(),
-                    source_name: buffer_name(&buffer),
+                    source_name: buffer_source_name(&buffer),
                     reason: format!(
                         "buffer view {} needs bytes {}..{} but the buffer has {available}",
                         view.index(),
@@ -574,6 +567,44 @@ impl Loader {
             )));
         }
         Ok(())
+    }
+
+    /// A float VEC3 attribute (POSITION, NORMAL) of primitive `name`: its type is checked before
+    /// `read` runs the typed reader on it.
+    fn read_vec3<I: Iterator<Item = [f32; 3]>>(
+        &self,
+        accessor: &gltf::Accessor,
+        name: &str,
+        semantic: &str,
+        read: impl FnOnce() -> Option<I>,
+    ) -> Result<Vec<Vec3>, CharacterError> {
+        self.check_kind(
+            accessor,
+            &format!("{name} {semantic}"),
+            Dimensions::Vec3,
+            &[DataType::F32],
+            false,
+        )?;
+        let values =
+            read().ok_or_else(|| self.malformed(format!("{name}: {semantic} cannot be read")))?;
+        Ok(values.map(Vec3::from).collect())
+    }
+
+    /// Every vertex attribute of primitive `name` has one element per POSITION.
+    fn check_count(
+        &self,
+        name: &str,
+        what: &str,
+        count: usize,
+        vertex_count: usize,
+    ) -> Result<(), CharacterError> {
+        if count == vertex_count {
+            Ok(())
+        } else {
+            Err(self.malformed(format!(
+                "{name}: {what} has {count} elements but POSITION has {vertex_count}"
+            )))
+        }
     }
 
     fn load_nodes(&self, document: &gltf::Document) -> Result<NodeHierarchy, CharacterError> {
@@ -789,31 +820,13 @@ impl Loader {
         let Some(position_accessor) = primitive.get(&Semantic::Positions) else {
             return Err(self.malformed(format!("{name} has no POSITION attribute")));
         };
-        self.check_kind(
-            &position_accessor,
-            &format!("{name} POSITION"),
-            Dimensions::Vec3,
-            &[DataType::F32],
-            false,
-        )?;
-        let positions: Vec<Vec3> = reader
-            .read_positions()
-            .ok_or_else(|| unreadable(self, "POSITION"))?
-            .map(Vec3::from)
-            .collect();
+        let positions = self.read_vec3(&position_accessor, name, "POSITION", || {
+            reader.read_positions()
+        })?;
         if let Some(vertex) = positions.iter().position(|p| !p.is_finite()) {
             return Err(self.malformed(format!("{name}, vertex {vertex}: position is not finite")));
         }
         let vertex_count = positions.len();
-        let count_matches = |loader: &Self, what: &str, count: usize| {
-            if count == vertex_count {
-                Ok(())
-            } else {
-                Err(loader.malformed(format!(
-                    "{name}: {what} has {count} elements but POSITION has {vertex_count}"
-                )))
-            }
-        };
 
         let indices: Vec<u32> = match primitive.indices() {
             Some(accessor) => {
@@ -839,35 +852,19 @@ impl Loader {
             }
             None => (0..vertex_count as u32).collect(),
         };
-        let triangles = match mode_triangles(primitive.mode(), &indices) {
-            Ok(triangles) => triangles,
-            Err(leftover) => {
-                self.warnings.push(format!(
-                    "{name}: {} indices is not a multiple of 3, the last {leftover} ignored",
-                    indices.len()
-                ));
-                indices
-                    .chunks_exact(3)
-                    .map(|t| [t[0], t[1], t[2]])
-                    .collect()
-            }
-        };
+        let (triangles, leftover) = mode_triangles(primitive.mode(), &indices);
+        if leftover > 0 {
+            self.warnings.push(format!(
+                "{name}: {} indices is not a multiple of 3, the last {leftover} ignored",
+                indices.len()
+            ));
+        }
 
         let normals = match primitive.get(&Semantic::Normals) {
             Some(accessor) => {
-                self.check_kind(
-                    &accessor,
-                    &format!("{name} NORMAL"),
-                    Dimensions::Vec3,
-                    &[DataType::F32],
-                    false,
-                )?;
-                let normals: Vec<Vec3> = reader
-                    .read_normals()
-                    .ok_or_else(|| unreadable(self, "NORMAL"))?
-                    .map(Vec3::from)
-                    .collect();
-                count_matches(self, "NORMAL", normals.len())?;
+                let normals =
+                    self.read_vec3(&accessor, name, "NORMAL", || reader.read_normals())?;
+                self.check_count(name, "NORMAL", normals.len(), vertex_count)?;
                 if let Some(vertex) = normals.iter().position(|n| !n.is_finite()) {
                     return Err(
                         self.malformed(format!("{name}, vertex {vertex}: normal is not finite"))
@@ -917,7 +914,7 @@ impl Loader {
                     .into_f32()
                     .map(Vec2::from)
                     .collect();
-                count_matches(self, &what, uvs.len())?;
+                self.check_count(name, &what, uvs.len(), vertex_count)?;
                 uvs
             }
             None => {
@@ -926,7 +923,7 @@ impl Loader {
                         "{name}: textured but has no TEXCOORD_{uv_set}; texture coordinates are all zero"
                     ));
                 }
-                zero_uvs(vertex_count)
+                vec![Vec2::ZERO; vertex_count]
             }
         };
 
@@ -1030,16 +1027,18 @@ impl Loader {
                 .ok_or_else(|| unreadable("WEIGHTS"))?
                 .into_f32()
                 .collect();
-            for (what, count) in [
-                ("JOINTS", joint_values.len()),
-                ("WEIGHTS", weight_values.len()),
-            ] {
-                if count != vertex_count {
-                    return Err(self.malformed(format!(
-                        "{name}: {what}_{set} has {count} elements but POSITION has {vertex_count}"
-                    )));
-                }
-            }
+            self.check_count(
+                name,
+                &format!("JOINTS_{set}"),
+                joint_values.len(),
+                vertex_count,
+            )?;
+            self.check_count(
+                name,
+                &format!("WEIGHTS_{set}"),
+                weight_values.len(),
+                vertex_count,
+            )?;
             let all = influences.get_or_insert_with(|| vec![Influences::default(); vertex_count]);
             let slot = 4 * set as usize;
             for (vertex, influence) in all.iter_mut().enumerate() {
@@ -1148,19 +1147,18 @@ impl Loader {
                     &[DataType::F32],
                     false,
                 )?;
-                let output_types: &[DataType] = match property {
-                    Property::Rotation => &[
-                        DataType::F32,
-                        DataType::I8,
-                        DataType::U8,
-                        DataType::I16,
-                        DataType::U16,
-                    ],
-                    _ => &[DataType::F32],
-                };
-                let output_dimensions = match property {
-                    Property::Rotation => Dimensions::Vec4,
-                    _ => Dimensions::Vec3,
+                let (output_dimensions, output_types): (Dimensions, &[DataType]) = match property {
+                    Property::Rotation => (
+                        Dimensions::Vec4,
+                        &[
+                            DataType::F32,
+                            DataType::I8,
+                            DataType::U8,
+                            DataType::I16,
+                            DataType::U16,
+                        ],
+                    ),
+                    _ => (Dimensions::Vec3, &[DataType::F32]),
                 };
                 self.check_kind(
                     &sampler.output(),
@@ -1181,10 +1179,7 @@ impl Loader {
                     .read_outputs()
                     .ok_or_else(|| unreadable("output"))?
                 {
-                    ReadOutputs::Translations(values) => {
-                        values.map(|v| Vec3::from(v).extend(0.0)).collect()
-                    }
-                    ReadOutputs::Scales(values) => {
+                    ReadOutputs::Translations(values) | ReadOutputs::Scales(values) => {
                         values.map(|v| Vec3::from(v).extend(0.0)).collect()
                     }
                     ReadOutputs::Rotations(values) => values.into_f32().map(Vec4::from).collect(),
@@ -1256,31 +1251,33 @@ impl Loader {
 
 /// Triangle lists from a triangle mode (glTF spec 3.7.2.1): strips alternate winding so every
 /// triangle keeps the orientation of the first; fans share vertex 0. Degenerate strip triangles
-/// (repeated indices, used to stitch strips) are dropped. For TRIANGLES with a count not a
-/// multiple of 3, `Err(leftover)`.
-fn mode_triangles(mode: Mode, indices: &[u32]) -> Result<Vec<[u32; 3]>, usize> {
+/// (repeated indices, used to stitch strips) are dropped. Also returns how many trailing indices
+/// were left over (TRIANGLES with a count not a multiple of 3; always 0 for strips and fans).
+fn mode_triangles(mode: Mode, indices: &[u32]) -> (Vec<[u32; 3]>, usize) {
     match mode {
-        Mode::TriangleStrip => Ok((0..indices.len().saturating_sub(2))
-            .map(|i| {
-                if i % 2 == 0 {
-                    [indices[i], indices[i + 1], indices[i + 2]]
-                } else {
-                    [indices[i], indices[i + 2], indices[i + 1]]
-                }
-            })
-            .filter(|[a, b, c]| a != b && b != c && a != c)
-            .collect()),
-        Mode::TriangleFan => Ok((1..indices.len().saturating_sub(1))
-            .map(|i| [indices[i], indices[i + 1], indices[0]])
-            .collect()),
+        Mode::TriangleStrip => {
+            let triangles = (0..indices.len().saturating_sub(2))
+                .map(|i| {
+                    if i % 2 == 0 {
+                        [indices[i], indices[i + 1], indices[i + 2]]
+                    } else {
+                        [indices[i], indices[i + 2], indices[i + 1]]
+                    }
+                })
+                .filter(|[a, b, c]| a != b && b != c && a != c)
+                .collect();
+            (triangles, 0)
+        }
+        Mode::TriangleFan => {
+            let triangles = (1..indices.len().saturating_sub(1))
+                .map(|i| [indices[i], indices[i + 1], indices[0]])
+                .collect();
+            (triangles, 0)
+        }
         _ => {
-            if !indices.len().is_multiple_of(3) {
-                return Err(indices.len() % 3);
-            }
-            Ok(indices
-                .chunks_exact(3)
-                .map(|t| [t[0], t[1], t[2]])
-                .collect())
+            let chunks = indices.chunks_exact(3);
+            let leftover = chunks.remainder().len();
+            (chunks.map(|t| [t[0], t[1], t[2]]).collect(), leftover)
         }
     }
 }
@@ -1307,22 +1304,23 @@ mod tests {
     fn strips_and_fans_become_ccw_lists() {
         // Strip 0 1 2 3 4: (0,1,2), (1,3,2), (2,3,4) — all with the first triangle's orientation.
         assert_eq!(
-            mode_triangles(Mode::TriangleStrip, &[0, 1, 2, 3, 4]).unwrap(),
-            vec![[0, 1, 2], [1, 3, 2], [2, 3, 4]]
+            mode_triangles(Mode::TriangleStrip, &[0, 1, 2, 3, 4]),
+            (vec![[0, 1, 2], [1, 3, 2], [2, 3, 4]], 0)
         );
         // Fan 0 1 2 3: (1,2,0), (2,3,0).
         assert_eq!(
-            mode_triangles(Mode::TriangleFan, &[0, 1, 2, 3]).unwrap(),
-            vec![[1, 2, 0], [2, 3, 0]]
+            mode_triangles(Mode::TriangleFan, &[0, 1, 2, 3]),
+            (vec![[1, 2, 0], [2, 3, 0]], 0)
         );
-        assert_eq!(mode_triangles(Mode::Triangles, &[0, 1, 2, 3]), Err(1));
-        assert!(mode_triangles(Mode::TriangleStrip, &[0, 1])
-            .unwrap()
-            .is_empty());
+        assert_eq!(
+            mode_triangles(Mode::Triangles, &[0, 1, 2, 3]),
+            (vec![[0, 1, 2]], 1)
+        );
+        assert_eq!(mode_triangles(Mode::TriangleStrip, &[0, 1]), (vec![], 0));
         // A repeated index: (1,2,2) and (2,2,3) are degenerate and dropped, the rest keep parity.
         assert_eq!(
-            mode_triangles(Mode::TriangleStrip, &[0, 1, 2, 2, 3, 4, 5]).unwrap(),
-            vec![[0, 1, 2], [2, 4, 3], [3, 4, 5]]
+            mode_triangles(Mode::TriangleStrip, &[0, 1, 2, 2, 3, 4, 5]),
+            (vec![[0, 1, 2], [2, 4, 3], [3, 4, 5]], 0)
         );
     }
 

@@ -19,7 +19,7 @@ mod skinning;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use glam::{Mat4, Quat, Vec2, Vec3};
+use glam::{Mat4, Quat, Vec3};
 
 use crate::mesh::{Mesh, Texture};
 
@@ -373,10 +373,6 @@ fn smooth_normals(positions: &[Vec3], triangles: &[[u32; 3]]) -> Vec<Vec3> {
         sums[c] += area_normal;
     }
     sums.into_iter().map(|n| n.normalize_or(Vec3::Y)).collect()
-}
-
-fn zero_uvs(count: usize) -> Vec<Vec2> {
-    vec![Vec2::ZERO; count]
 }
 
 #[cfg(test)]

@@ -109,15 +109,21 @@ pub(super) fn pose(asset: &CharacterAsset, animation: Option<&Animation>, time_s
     }
 }
 
+/// The rest pose with every joint's global matrix replaced by `inverse(inverse_bind)`; the joint
+/// matrices are computed once, from those.
 pub(super) fn bind_pose(asset: &CharacterAsset) -> Pose {
-    let mut pose = pose(asset, None, 0.0);
+    let rest: Vec<LocalTransform> = asset.nodes.iter().map(|node| node.local).collect();
+    let mut node_global = node_globals(asset, &rest);
     for skin in &asset.skins {
         for (&joint, inverse_bind) in skin.joints.iter().zip(&skin.inverse_bind) {
-            pose.node_global[joint] = inverse_bind.inverse();
+            node_global[joint] = inverse_bind.inverse();
         }
     }
-    pose.joint_matrices = joint_matrices(asset, &pose.node_global);
-    pose
+    let joint_matrices = joint_matrices(asset, &node_global);
+    Pose {
+        node_global,
+        joint_matrices,
+    }
 }
 
 /// `M^-T n` up to a positive factor, without dividing by the determinant: the columns of the
@@ -149,7 +155,7 @@ fn blended_matrix(influences: &Influences, world_joint: &[Mat4]) -> Mat4 {
 }
 
 /// Linear blend skinning of one primitive. `world_joint[j]` = world_from_character * joint matrix.
-pub(super) fn skin_vertices(
+fn skin_vertices(
     mesh: &Mesh,
     influences: &[Influences],
     world_joint: &[Mat4],
@@ -199,6 +205,24 @@ pub(super) fn posed_primitives(
     pose: &Pose,
     world_from_character: Mat4,
 ) -> Vec<PosedPrimitive> {
+    // Per skin, once per call however many primitives it draws: world_from_character * joint.
+    // A pose built by hand with too few matrices gets identity joints rather than a panic; poses
+    // from `CharacterAsset::pose` always have them all.
+    let world_joints: Vec<Vec<Mat4>> = asset
+        .skins
+        .iter()
+        .enumerate()
+        .map(|(index, skin)| {
+            let matrices = pose.joint_matrices.get(index);
+            (0..skin.joints.len())
+                .map(|j| {
+                    let joint = matrices.and_then(|m| m.get(j)).copied();
+                    world_from_character * joint.unwrap_or(Mat4::IDENTITY)
+                })
+                .collect()
+        })
+        .collect();
+    let world_mirrored = world_from_character.determinant() < 0.0;
     asset
         .draw_items
         .iter()
@@ -206,21 +230,10 @@ pub(super) fn posed_primitives(
             let primitive = &asset.primitives[item.primitive];
             let stored = &primitive.mesh;
             let ((positions, normals), mirrored) = match (item.skin, &primitive.influences) {
-                (Some(skin), Some(influences)) => {
-                    // A pose built by hand with too few matrices gets identity joints rather
-                    // than a panic; poses from `CharacterAsset::pose` always have them all.
-                    let joints = pose.joint_matrices.get(skin);
-                    let world_joint: Vec<Mat4> = (0..asset.skins[skin].joints.len())
-                        .map(|j| {
-                            let joint = joints.and_then(|m| m.get(j)).copied();
-                            world_from_character * joint.unwrap_or(Mat4::IDENTITY)
-                        })
-                        .collect();
-                    (
-                        skin_vertices(stored, influences, &world_joint),
-                        world_from_character.determinant() < 0.0,
-                    )
-                }
+                (Some(skin), Some(influences)) => (
+                    skin_vertices(stored, influences, &world_joints[skin]),
+                    world_mirrored,
+                ),
                 _ => {
                     let node = pose.node_global.get(item.node).copied();
                     let m = world_from_character * node.unwrap_or(Mat4::IDENTITY);
