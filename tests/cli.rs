@@ -336,3 +336,53 @@ fn root_path_keyframes_out_of_order_are_refused() {
         &["character[0].path[1].frame", "out of order"],
     );
 }
+
+/// Every scene shipped in `scenes/` loads and renders its last frame (so the characters' ripples
+/// have been stepped through the whole timeline).
+#[test]
+fn every_shipped_scene_renders() {
+    let scenes = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
+    let mut rendered = Vec::new();
+    for entry in std::fs::read_dir(&scenes).unwrap().flatten() {
+        let scene = entry.path();
+        if scene.extension().is_none_or(|e| e != "toml") {
+            continue;
+        }
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("out");
+        let text = std::fs::read_to_string(&scene).unwrap();
+        let last = text
+            .lines()
+            .find_map(|l| l.trim().strip_prefix("frames = ["))
+            .and_then(|rest| {
+                rest.split(']')
+                    .next()?
+                    .split(',')
+                    .nth(1)?
+                    .trim()
+                    .parse::<u32>()
+                    .ok()
+            })
+            .unwrap_or(48); // the default timeline: frames 1-48
+        let frame = last.to_string();
+        let output = render_small(&scene, &out, &["--frames", &frame], dir.path());
+        assert!(
+            output.status.success(),
+            "{} fails: {}",
+            scene.display(),
+            String::from_utf8_lossy(&output.stderr)
+        );
+        rendered.push(scene.file_stem().unwrap().to_string_lossy().to_string());
+    }
+    rendered.sort();
+    assert_eq!(
+        rendered,
+        [
+            "cesium_submerged",
+            "fox_wading",
+            "pool",
+            "post_breaking_surface",
+            "tiny"
+        ]
+    );
+}

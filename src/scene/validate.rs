@@ -53,8 +53,10 @@ const DEFAULT_RIPPLE_SPEED_M_PER_S: f64 = 0.5;
 /// Ripples from a wading animal die down within a few seconds.
 const DEFAULT_RIPPLE_DAMPING_PER_S: f64 = 0.5;
 const DEFAULT_SPONGE_WIDTH_M: f64 = 0.5;
-/// A body this far under the surface stirs it e times less than one at the surface.
-const DEFAULT_COUPLING_DEPTH_M: f64 = 0.25;
+/// A body this far under the surface stirs it e times less than one at the surface. A disturbance
+/// of wavenumber k at depth d reaches the surface damped by exp(-k d); for the ripples a grid
+/// carries (wavelengths of 10 to 60 cm) 1/k is 2 to 10 cm.
+const DEFAULT_COUPLING_DEPTH_M: f64 = 0.1;
 /// Finer tessellation than this would build millions of vertices per square metre.
 const MIN_MAX_EDGE_M: f64 = 0.01;
 
@@ -379,7 +381,7 @@ fn ripples(
     positive(
         coupling_depth_m,
         &path.key("coupling_depth_m"),
-        "coupling_depth_m = 0.25",
+        "coupling_depth_m = 0.1",
         map,
     )?;
     Ok(RippleSpec {
