@@ -63,6 +63,12 @@ enum Command {
         /// Scene whose frame times are measured.
         #[arg(long, default_value = "scenes/pool.toml")]
         scene: PathBuf,
+        /// Scene with characters whose skinning and ripple share of the frame is measured.
+        #[arg(long, default_value = "scenes/fox_wading.toml")]
+        characters_scene: PathBuf,
+        /// glTF model whose skinning throughput is measured.
+        #[arg(long, default_value = "scenes/assets/Fox.glb")]
+        skinning_model: PathBuf,
         /// Frames rendered for the frame-time figures (after one warm-up frame).
         #[arg(long, default_value_t = 8)]
         frames: u32,
@@ -90,8 +96,10 @@ fn main() -> ExitCode {
         Command::Bench {
             json,
             scene,
+            characters_scene,
+            skinning_model,
             frames,
-        } => bench(json, &scene, frames),
+        } => bench(json, &scene, &characters_scene, &skinning_model, frames),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -156,8 +164,15 @@ fn info(scene_path: &Path) -> Result<(), SnellError> {
     Ok(())
 }
 
-fn bench(json: bool, scene_path: &Path, frames: u32) -> Result<(), SnellError> {
-    let figures = snell::frame::bench::run(scene_path, frames)?;
+fn bench(
+    json: bool,
+    scene_path: &Path,
+    characters_scene_path: &Path,
+    skinning_model: &Path,
+    frames: u32,
+) -> Result<(), SnellError> {
+    let figures =
+        snell::frame::bench::run(scene_path, characters_scene_path, skinning_model, frames)?;
     if json {
         println!(
             "{}",

@@ -4,6 +4,7 @@
 
 use std::collections::BTreeMap;
 use std::path::Path;
+use std::time::Instant;
 
 use serde::Serialize;
 
@@ -14,6 +15,21 @@ use crate::gpu::Renderer;
 pub struct BenchFigures {
     pub refraction: RefractionFigures,
     pub frame: FrameFigures,
+    pub characters: CharacterFigures,
+}
+
+/// Skinning and ripples: their throughput, and their share of a character scene's frame.
+#[derive(Debug, Serialize)]
+pub struct CharacterFigures {
+    /// Linear blend skinning of the Fox (every non-zero joint weight of every vertex), median.
+    pub skinning_vertex_influences_per_sec: f64,
+    /// Steps of the ripple wave equation on a 256 x 256-node grid, median.
+    pub ripple_steps_per_sec_256: f64,
+    /// The character scene's frame times (skinning and ripples stages included).
+    pub frame: FrameFigures,
+    /// (skinning + ripples) / (water + refraction + render + skinning + ripples) of that scene's
+    /// frames, medians: the figure with the 20 % target.
+    pub skinning_and_ripples_share: f64,
 }
 
 #[derive(Debug, Serialize)]
@@ -37,29 +53,44 @@ pub struct FrameFigures {
     pub refraction_plus_render_ms: f64,
 }
 
-impl BenchFigures {
-    pub fn to_text(&self) -> String {
+impl FrameFigures {
+    fn to_text(&self) -> String {
         let mut text = format!(
-            "refraction search: {:.2} M vertices/s ({})\n\
-             speed-up over brute force at the thesis's scale: {:.0}x\n\
-             frame times of {} at {}x{} on {} (median of {} frames):\n",
-            self.refraction.vertices_per_sec / 1e6,
-            self.refraction.scenario,
-            self.refraction.speedup_vs_brute_force,
-            self.frame.scene,
-            self.frame.size[0],
-            self.frame.size[1],
-            self.frame.adapter,
-            self.frame.frames_measured,
+            "frame times of {} at {}x{} on {} (median of {} frames):\n",
+            self.scene, self.size[0], self.size[1], self.adapter, self.frames_measured,
         );
-        for (stage, ms) in &self.frame.median_stage_ms {
+        for (stage, ms) in &self.median_stage_ms {
             text.push_str(&format!("  {stage:<12} {ms:8.2} ms\n"));
         }
         text.push_str(&format!(
             "  water + refraction + render (readback included): {:.2} ms\n",
-            self.frame.refraction_plus_render_ms
+            self.refraction_plus_render_ms
         ));
         text
+    }
+}
+
+impl BenchFigures {
+    pub fn to_text(&self) -> String {
+        let characters = &self.characters;
+        format!(
+            "refraction search: {:.2} M vertices/s ({})\n\
+             speed-up over brute force at the thesis's scale: {:.0}x\n\
+             {}\
+             skinning: {:.1} M vertex-influences/s (Fox)\n\
+             ripples: {:.0} steps/s on a 256x256 grid\n\
+             {}\
+             skinning + ripples: {:.1} % of the {} frame\n",
+            self.refraction.vertices_per_sec / 1e6,
+            self.refraction.scenario,
+            self.refraction.speedup_vs_brute_force,
+            self.frame.to_text(),
+            characters.skinning_vertex_influences_per_sec / 1e6,
+            characters.ripple_steps_per_sec_256,
+            characters.frame.to_text(),
+            100.0 * characters.skinning_and_ripples_share,
+            characters.frame.scene,
+        )
     }
 }
 
@@ -71,7 +102,44 @@ fn median(values: &mut [f64]) -> f64 {
     values[values.len() / 2]
 }
 
-pub fn run(scene_path: &Path, frames: u32) -> Result<BenchFigures, SnellError> {
+/// Skinning throughput of `scenes/assets/Fox.glb` and ripple steps per second on a 256^2 grid.
+fn character_throughput(fox: &Path) -> Result<(f64, f64), SnellError> {
+    let asset = crate::character::CharacterAsset::load(fox)
+        .map_err(|e| SnellError::Argument(e.to_string()))?;
+    let skinning = crate::character::skinning_throughput(&asset, 50);
+    let settings = crate::sim::RippleSettings {
+        nodes_x: 256,
+        nodes_z: 256,
+        min_x: -5.0,
+        min_z: -5.0,
+        spacing_m: 10.0 / 255.0,
+        speed_m_per_s: 0.5,
+        damping_per_s: 0.5,
+        border: crate::sim::Border::Absorb,
+        sponge_nodes: 12,
+        sponge_damping_per_s: 8.0,
+    };
+    let stepper = crate::sim::RippleStepper::new(settings);
+    let mut state = crate::sim::RippleState::calm(settings);
+    state.height_m[128 * 256 + 128] = 0.01;
+    let step_secs = crate::sim::ripples::MAX_COURANT * settings.spacing_m / settings.speed_m_per_s;
+    let mut per_batch = Vec::new();
+    for _ in 0..7 {
+        let start = Instant::now();
+        for _ in 0..100 {
+            stepper.step(&mut state, step_secs);
+        }
+        per_batch.push(100.0 / start.elapsed().as_secs_f64());
+    }
+    Ok((skinning, median(&mut per_batch)))
+}
+
+pub fn run(
+    scene_path: &Path,
+    characters_scene_path: &Path,
+    fox_path: &Path,
+    frames: u32,
+) -> Result<BenchFigures, SnellError> {
     let search = crate::refraction::bench::bench_search();
     let refraction = RefractionFigures {
         vertices_per_sec: search.vertices_per_sec,
@@ -82,10 +150,42 @@ pub fn run(scene_path: &Path, frames: u32) -> Result<BenchFigures, SnellError> {
         ),
     };
 
+    let mut renderer = Renderer::new()?;
+    let frame = frame_times(&mut renderer, scene_path, frames)?;
+    let characters_frame = frame_times(&mut renderer, characters_scene_path, frames)?;
+    let stage = |name: &str| {
+        characters_frame
+            .median_stage_ms
+            .get(name)
+            .copied()
+            .unwrap_or(0.0)
+    };
+    let dynamics_ms = stage("skinning") + stage("ripples");
+    let share =
+        dynamics_ms / (dynamics_ms + stage("water") + stage("refraction") + stage("render"));
+    let (skinning, ripple_steps) = character_throughput(fox_path)?;
+    Ok(BenchFigures {
+        refraction,
+        frame,
+        characters: CharacterFigures {
+            skinning_vertex_influences_per_sec: skinning,
+            ripple_steps_per_sec_256: ripple_steps,
+            frame: characters_frame,
+            skinning_and_ripples_share: share,
+        },
+    })
+}
+
+/// Per-stage times of `frames` frames of a scene at 1280x720, in sequence from its first frame
+/// (after one warm-up frame).
+fn frame_times(
+    renderer: &mut Renderer,
+    scene_path: &Path,
+    frames: u32,
+) -> Result<FrameFigures, SnellError> {
     let (width, height) = (1280, 720);
     let job = RenderJob::prepare(scene_path)?;
-    let mut renderer = Renderer::new()?;
-    job.upload_textures(&mut renderer)?;
+    job.upload_textures(renderer)?;
     let timeline = *job.timeline();
     let frames = frames
         .max(1)
@@ -97,7 +197,7 @@ pub fn run(scene_path: &Path, frames: u32) -> Result<BenchFigures, SnellError> {
     for (i, frame) in (timeline.first_frame..timeline.first_frame + frames + 1).enumerate() {
         let frame = frame.min(timeline.last_frame);
         let mut refracted = job.refract(frame, width, height, previous.as_ref())?;
-        job.render_refracted(&mut renderer, &mut refracted, width, height)?;
+        job.render_refracted(renderer, &mut refracted, width, height)?;
         if i > 0 {
             for (stage, secs) in &refracted.stage_secs {
                 per_stage.entry(stage.clone()).or_default().push(secs * 1e3);
@@ -116,15 +216,12 @@ pub fn run(scene_path: &Path, frames: u32) -> Result<BenchFigures, SnellError> {
         .into_iter()
         .map(|(k, mut v)| (k, median(&mut v)))
         .collect();
-    Ok(BenchFigures {
-        refraction,
-        frame: FrameFigures {
-            scene: job.scene_name().to_string(),
-            size: [width, height],
-            frames_measured: frames,
-            adapter: renderer.adapter_summary(),
-            median_stage_ms,
-            refraction_plus_render_ms: median(&mut totals),
-        },
+    Ok(FrameFigures {
+        scene: job.scene_name().to_string(),
+        size: [width, height],
+        frames_measured: frames,
+        adapter: renderer.adapter_summary(),
+        median_stage_ms,
+        refraction_plus_render_ms: median(&mut totals),
     })
 }
