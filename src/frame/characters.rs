@@ -314,3 +314,49 @@ impl Dynamics {
         coupling::occupancy(settings, &meshes, surface, self.coupling_depth_m)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The key a scene's checkpoints are stored under.
+    fn key_of(scene_file: &Path) -> CheckpointKey {
+        let scene = Scene::load(scene_file).unwrap();
+        let mut textures = Vec::new();
+        let characters = load_characters(&scene, &mut textures).unwrap();
+        simulation_key(&scene, &characters, &ripple_settings(&scene)).unwrap()
+    }
+
+    /// Stale checkpoints are never used: editing the scene file or any byte of an asset it
+    /// references gives another key (and so another checkpoint folder).
+    #[test]
+    fn the_key_changes_with_the_scene_and_with_every_asset() {
+        let dir = tempfile::tempdir().unwrap();
+        let model = dir.path().join("post.glb");
+        let original = std::fs::read(
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/assets/RiggedSimple.glb"),
+        )
+        .unwrap();
+        std::fs::write(&model, &original).unwrap();
+        let scene_file = dir.path().join("scene.toml");
+        let text = "[[character]]\nfile = \"post.glb\"\nscale = 0.15\n";
+        std::fs::write(&scene_file, text).unwrap();
+        let first = key_of(&scene_file);
+        assert_eq!(key_of(&scene_file), first, "same inputs, same key");
+
+        std::fs::write(&scene_file, text.replace("0.15", "0.16")).unwrap();
+        let edited_scene = key_of(&scene_file);
+        assert_ne!(edited_scene, first);
+
+        // A mesh renamed inside the file: still the same loadable model, another key.
+        let name = b"Cylinder";
+        let at = original
+            .windows(name.len())
+            .position(|w| w == name)
+            .unwrap();
+        let mut changed = original.clone();
+        changed[at + name.len() - 1] = b's';
+        std::fs::write(&model, &changed).unwrap();
+        assert_ne!(key_of(&scene_file), edited_scene);
+    }
+}
