@@ -22,6 +22,7 @@ pub mod frame;
 pub mod gpu;
 pub mod mesh;
 pub mod output;
+pub mod preview;
 pub mod refraction;
 pub mod scene;
 pub mod sim;

@@ -6,7 +6,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
-use snell::frame::{self, FrameRange, RenderJob, SnellError};
+use snell::frame::{self, FrameRange, Method, RenderJob, SnellError};
 
 #[derive(Parser)]
 #[command(
@@ -47,6 +47,31 @@ enum Command {
         /// Also write a tone-mapped PNG next to each EXR.
         #[arg(long)]
         png: bool,
+        /// How under-water geometry is placed: equal-t (refraction cells without gaps or
+        /// overlaps, the default) or thesis-plane (the thesis's plane-test cells, for comparison).
+        #[arg(long, default_value = "equal-t", value_name = "METHOD")]
+        method: String,
+    },
+    /// Scrub a scene's timeline in the browser: a local web page with the frame, a timeline
+    /// slider, play/pause, exposure, method, flag overlays and a strip of per-frame flag counts.
+    ///
+    /// Serves on 127.0.0.1 only. Frames render on demand at the preview size and are cached;
+    /// neighbours are prefetched. Edit the scene file (or any file it uses) and the page reloads
+    /// it; a scene error is shown on the page, and the last version that loaded stays
+    /// scrubbable until the error is fixed. Ripple simulations use the checkpoints of
+    /// `snell render` (in output/<scene>/ unless --out says otherwise). Stop with Ctrl-C.
+    Preview {
+        /// The scene file (TOML).
+        scene: PathBuf,
+        /// TCP port on 127.0.0.1 (0 picks a free one).
+        #[arg(long, default_value_t = 8080)]
+        port: u16,
+        /// Preview image size in pixels.
+        #[arg(long, value_name = "WxH", default_value = "640x360")]
+        size: String,
+        /// Where simulation checkpoints are kept (default: output/<scene name>/).
+        #[arg(long, value_name = "DIR")]
+        out: Option<PathBuf>,
     },
     /// Print what a scene contains (objects, vertices, triangles, membrane, frame range) and the GPU
     /// adapter a render would use.
@@ -91,7 +116,14 @@ fn main() -> ExitCode {
             out,
             size,
             png,
-        } => render(&scene, frames.as_deref(), out, &size, png),
+            method,
+        } => render(&scene, frames.as_deref(), out, &size, png, &method),
+        Command::Preview {
+            scene,
+            port,
+            size,
+            out,
+        } => preview(&scene, port, &size, out),
         Command::Info { scene } => info(&scene),
         Command::Bench {
             json,
@@ -139,9 +171,13 @@ fn render(
     out: Option<PathBuf>,
     size: &str,
     png: bool,
+    method: &str,
 ) -> Result<(), SnellError> {
     let (width, height) = frame::parse_size(size)?;
-    let job = RenderJob::prepare(scene_path)?;
+    let method =
+        Method::parse(method).map_err(|e| SnellError::Argument(format!("--method: {e}")))?;
+    let mut job = RenderJob::prepare(scene_path)?;
+    job.method = method;
     let range = match frames {
         Some(text) => FrameRange::parse(text, job.timeline())?,
         None => FrameRange::whole(job.timeline()),
@@ -158,11 +194,43 @@ fn render(
     Ok(())
 }
 
+fn preview(
+    scene_path: &Path,
+    port: u16,
+    size: &str,
+    out: Option<PathBuf>,
+) -> Result<(), SnellError> {
+    let (width, height) = frame::parse_size(size)?;
+    let mut options = snell::preview::PreviewOptions::new(scene_path);
+    options.port = port;
+    options.width = width;
+    options.height = height;
+    options.out_dir = out;
+    let server = snell::preview::PreviewServer::start(options)?;
+    // The first line on stdout is the address (tests and scripts read it); flushed at once.
+    println!(
+        "snell preview: {} on {}",
+        scene_path.display(),
+        server.url()
+    );
+    use std::io::Write;
+    let _ = std::io::stdout().flush();
+    eprintln!(
+        "open {} in a browser; Ctrl-C stops the preview",
+        server.url()
+    );
+    server.wait();
+    Ok(())
+}
+
 fn info(scene_path: &Path) -> Result<(), SnellError> {
     let job = RenderJob::prepare(scene_path)?;
     print!("{}", job.describe());
     Ok(())
 }
+
+/// Frames whose scrub latency `snell bench` measures (spread over the timeline).
+const SCRUB_FRAMES: usize = 8;
 
 fn bench(
     json: bool,
@@ -173,13 +241,16 @@ fn bench(
 ) -> Result<(), SnellError> {
     let figures =
         snell::frame::bench::run(scene_path, characters_scene_path, skinning_model, frames)?;
+    let scrub = snell::preview::bench::scrub_latency(scene_path, SCRUB_FRAMES)?;
     if json {
+        let mut value = serde_json::to_value(&figures).expect("figures serialise");
+        value["preview"] = serde_json::to_value(&scrub).expect("figures serialise");
         println!(
             "{}",
-            serde_json::to_string_pretty(&figures).expect("figures serialise")
+            serde_json::to_string_pretty(&value).expect("figures serialise")
         );
     } else {
-        print!("{}", figures.to_text());
+        print!("{}{}", figures.to_text(), scrub.to_text());
     }
     Ok(())
 }

@@ -134,6 +134,67 @@ pub struct RefractedFrame {
     pub stage_secs: BTreeMap<String, f64>,
 }
 
+/// How under-water geometry is placed: which refraction cells the virtual vertices come from.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Method {
+    /// Equal-t cells (ALGORITHM §5): no gaps, no overlaps. The default.
+    #[default]
+    EqualT,
+    /// The thesis's per-facet plane test, kept for comparison (gaps and overlaps between cells).
+    ThesisPlane,
+}
+
+impl Method {
+    pub const ALL: [Method; 2] = [Method::EqualT, Method::ThesisPlane];
+
+    /// The short name used on the command line and in the preview (`equal-t`, `thesis-plane`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::EqualT => "equal-t",
+            Method::ThesisPlane => "thesis-plane",
+        }
+    }
+
+    /// The label written into EXR headers and reports.
+    pub fn label(self) -> &'static str {
+        match self {
+            Method::EqualT => "virtual-vertices/equal-t",
+            Method::ThesisPlane => "virtual-vertices/thesis-plane",
+        }
+    }
+
+    /// One line saying what the method is, for `--help` and the preview's selector.
+    pub fn description(self) -> &'static str {
+        match self {
+            Method::EqualT => "virtual vertices through equal-t refraction cells (exact cell boundaries)",
+            Method::ThesisPlane => {
+                "virtual vertices through the thesis's plane-test cells (gaps and overlaps between cells)"
+            }
+        }
+    }
+
+    /// Parses [`Method::name`]; the error lists the choices.
+    pub fn parse(text: &str) -> Result<Method, SnellError> {
+        Method::ALL
+            .into_iter()
+            .find(|method| method.name() == text.trim())
+            .ok_or_else(|| {
+                let names: Vec<&str> = Method::ALL.iter().map(|m| m.name()).collect();
+                SnellError::Argument(format!(
+                    "method {text:?} is unknown; choose one of: {}",
+                    names.join(", ")
+                ))
+            })
+    }
+
+    fn cell_mode(self) -> CellMode {
+        match self {
+            Method::EqualT => CellMode::EqualT,
+            Method::ThesisPlane => CellMode::Thesis,
+        }
+    }
+}
+
 /// A loaded scene, ready to render any of its frames.
 pub struct RenderJob {
     pub scene: Scene,
@@ -143,6 +204,8 @@ pub struct RenderJob {
     pub camera_track: CameraTrack,
     /// Characters (posed every frame) and the ripples they make.
     pub dynamics: characters::Dynamics,
+    /// How under-water geometry is placed ([`Method::EqualT`] unless set).
+    pub method: Method,
     /// Heights the refraction search must cover for the static objects (characters and ripples
     /// widen it per frame).
     query_y_range: (f32, f32),
@@ -183,6 +246,7 @@ impl RenderJob {
             waves,
             camera_track,
             dynamics,
+            method: Method::default(),
             query_y_range: (bottom, top),
         })
     }
@@ -191,6 +255,23 @@ impl RenderJob {
     /// checkpoints of this scene were deleted).
     pub fn use_checkpoints(&self, out_dir: &Path) -> Result<Option<String>, SnellError> {
         self.dynamics.use_checkpoints(out_dir, &self.scene.name)
+    }
+
+    /// The scene file and every file it references (character models with their buffers and
+    /// images, image textures), sorted, without repeats.
+    pub fn input_files(&self) -> Vec<PathBuf> {
+        let mut files: Vec<PathBuf> = std::iter::once(self.scene.path.clone())
+            .chain(
+                self.dynamics
+                    .characters
+                    .iter()
+                    .flat_map(|c| c.asset.files().iter().cloned()),
+            )
+            .chain(self.scene.image_files())
+            .collect();
+        files.sort();
+        files.dedup();
+        files
     }
 
     pub fn scene_name(&self) -> &str {
@@ -266,7 +347,7 @@ impl RenderJob {
             eye: camera.eye,
             n_above: self.scene.water.n_above as f32,
             n_below: self.scene.water.n_below as f32,
-            cell_mode: CellMode::EqualT,
+            cell_mode: self.method.cell_mode(),
         };
         let field = RefractionField::build(&membrane, &surface, setup, query_y_range);
         let request = VirtualGeometryRequest {
@@ -446,7 +527,7 @@ impl RenderJob {
             frame: refracted.frame,
             time_secs: refracted.time_secs,
             camera: refracted.camera,
-            method: "virtual-vertices/equal-t".to_string(),
+            method: self.method.label().to_string(),
             version: crate::VERSION.to_string(),
             extra: vec![
                 (
@@ -471,7 +552,7 @@ impl RenderJob {
             counts: serde_json::to_value(refracted.counts).expect("flag counts serialise"),
             stage_secs: refracted.stage_secs.clone(),
             size: [width, height],
-            method: "virtual-vertices/equal-t".to_string(),
+            method: self.method.label().to_string(),
         }
     }
 

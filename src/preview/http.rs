@@ -1,0 +1,473 @@
+//! The preview's HTTP side: routes requests (see the module docs of [`super`]), waits for frames
+//! from the worker, tone-maps, overlays flag masks and encodes PNGs, and answers every bad
+//! request with a 4xx status and a message saying what to ask instead.
+
+use std::io::Cursor;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use image::RgbaImage;
+use serde_json::json;
+
+use super::{worker, CachedFrame, FrameKey, ImageKey, Shared, State};
+use crate::draw::flag_bits;
+use crate::frame::Method;
+
+/// The flags a page can overlay: name, bit, overlay colour (sRGB bytes).
+pub(super) const OVERLAYS: [(&str, u32, [u8; 3]); 4] = [
+    ("convergence", flag_bits::CONVERGENCE, [255, 0, 255]),
+    ("boundary", flag_bits::BOUNDARY, [255, 220, 0]),
+    ("popping", flag_bits::POPPING, [255, 40, 40]),
+    ("extrapolated", flag_bits::EXTRAPOLATED, [0, 230, 255]),
+];
+
+/// How long a request waits for its frame before giving up (a frame takes well under a second;
+/// this only guards against a stuck GPU).
+const FRAME_WAIT: Duration = Duration::from_secs(120);
+
+struct Reply {
+    status: u16,
+    content_type: &'static str,
+    body: Vec<u8>,
+    headers: Vec<(&'static str, String)>,
+}
+
+impl Reply {
+    fn json(status: u16, value: serde_json::Value) -> Reply {
+        Reply {
+            status,
+            content_type: "application/json",
+            body: serde_json::to_vec(&value).expect("JSON values serialise"),
+            headers: Vec::new(),
+        }
+    }
+
+    fn error(status: u16, message: impl Into<String>) -> Reply {
+        Reply::json(status, json!({ "error": message.into() }))
+    }
+}
+
+pub(super) fn serve(server: &tiny_http::Server, shared: &Shared) {
+    loop {
+        let request = match server.recv() {
+            Ok(request) => request,
+            Err(_) if shared.lock().stopping => return,
+            Err(_) => continue, // a failed accept: keep serving
+        };
+        let started = Instant::now();
+        let reply = if *request.method() == tiny_http::Method::Get {
+            route(shared, request.url())
+        } else {
+            Reply::error(405, "the preview only answers GET requests")
+        };
+        let mut response = tiny_http::Response::from_data(reply.body)
+            .with_status_code(reply.status)
+            .with_header(header("Content-Type", reply.content_type))
+            .with_header(header("Cache-Control", "no-store"))
+            .with_header(header(
+                "X-Snell-Millis",
+                &format!("{:.2}", started.elapsed().as_secs_f64() * 1e3),
+            ));
+        for (name, value) in reply.headers {
+            response.add_header(header(name, &value));
+        }
+        // The client may have gone (a scrubbing page drops requests it no longer needs).
+        let _ = request.respond(response);
+    }
+}
+
+fn header(name: &str, value: &str) -> tiny_http::Header {
+    tiny_http::Header::from_bytes(name.as_bytes(), value.as_bytes()).expect("ASCII header")
+}
+
+fn route(shared: &Shared, url: &str) -> Reply {
+    let (path, query) = url.split_once('?').unwrap_or((url, ""));
+    let params = Query::parse(query);
+    match path {
+        "/" | "/index.html" => Reply {
+            status: 200,
+            content_type: "text/html; charset=utf-8",
+            body: super::page::PAGE.as_bytes().to_vec(),
+            headers: Vec::new(),
+        },
+        "/api/scene" => scene(shared),
+        "/api/strip" => match params.method() {
+            Ok(method) => strip(shared, method),
+            Err(reply) => reply,
+        },
+        _ => match path.strip_prefix("/api/frame/") {
+            Some(rest) => frame(shared, rest, &params),
+            None => Reply::error(
+                404,
+                format!("no such page: {path}; the preview serves /, /api/scene, /api/strip and /api/frame/<N>.png"),
+            ),
+        },
+    }
+}
+
+fn scene(shared: &Shared) -> Reply {
+    let state = shared.lock();
+    let methods: Vec<_> = Method::ALL
+        .iter()
+        .map(|m| json!({ "name": m.name(), "description": m.description() }))
+        .collect();
+    Reply::json(
+        200,
+        json!({
+            "revision": state.revision,
+            "generation": state.generation,
+            "scene": state.scene,
+            "size": [shared.width, shared.height],
+            "methods": methods,
+            "default_method": Method::default().name(),
+            "flags": OVERLAYS.iter().map(|(name, _, rgb)| json!({
+                "name": name,
+                "color": format!("#{:02x}{:02x}{:02x}", rgb[0], rgb[1], rgb[2]),
+            })).collect::<Vec<_>>(),
+            "cached_frames": state.frames.len(),
+            "problem": state.problem,
+            "notice": state.notice,
+            "worker_busy": state.worker_busy
+                || !state.demand.is_empty()
+                || !state.prefetch.is_empty(),
+            "strips_done": state.strips.values().all(|s| s.counts.iter().all(Option::is_some)),
+        }),
+    )
+}
+
+fn strip(shared: &Shared, method: Method) -> Reply {
+    let mut state = shared.lock();
+    let Some(scene) = state.scene.clone() else {
+        return no_scene(&state);
+    };
+    if !state.strips.contains_key(&method) {
+        worker::want_strip(&mut state, method);
+        shared.wake.notify_all();
+    }
+    let strip = &state.strips[&method];
+    let frames: Vec<_> = strip
+        .counts
+        .iter()
+        .enumerate()
+        .map(|(index, counts)| {
+            let frame = scene.first_frame + index as u32;
+            json!({
+                "frame": frame,
+                "time_secs": (frame - scene.first_frame) as f64 / scene.fps,
+                "counts": counts,
+            })
+        })
+        .collect();
+    Reply::json(
+        200,
+        json!({
+            "generation": state.generation,
+            "method": method.name(),
+            "done": strip.counts.iter().all(Option::is_some),
+            "frames": frames,
+        }),
+    )
+}
+
+fn no_scene(state: &State) -> Reply {
+    Reply::error(
+        503,
+        format!(
+            "the scene did not load: {}",
+            state.problem.as_deref().unwrap_or("(no message)")
+        ),
+    )
+}
+
+/// `/api/frame/<N>.png` and `/api/frame/<N>.json`.
+fn frame(shared: &Shared, rest: &str, params: &Query) -> Reply {
+    let (number, extension) = rest.rsplit_once('.').unwrap_or((rest, ""));
+    if extension != "png" && extension != "json" {
+        return Reply::error(
+            404,
+            format!("/api/frame/{rest}: ask for /api/frame/<N>.png (the image) or /api/frame/<N>.json (its flag counts)"),
+        );
+    }
+    let Ok(frame) = number.parse::<u32>() else {
+        return Reply::error(
+            400,
+            format!("frame {number:?} is not a frame number (a whole number such as 12)"),
+        );
+    };
+    let method = match params.method() {
+        Ok(method) => method,
+        Err(reply) => return reply,
+    };
+    let exposure_stops = match params.get("exposure") {
+        None | Some("") => 0.0,
+        Some(text) => match text.parse::<f32>() {
+            Ok(value) if value.is_finite() && value.abs() <= 20.0 => value,
+            _ => {
+                return Reply::error(
+                    400,
+                    format!("exposure {text:?} must be a number of stops between -20 and 20"),
+                )
+            }
+        },
+    };
+    let mut overlay_bits = 0;
+    for name in params
+        .get("flags")
+        .unwrap_or("")
+        .split(',')
+        .filter(|n| !n.is_empty())
+    {
+        match OVERLAYS.iter().find(|(overlay, _, _)| *overlay == name) {
+            Some((_, bit, _)) => overlay_bits |= bit,
+            None => {
+                return Reply::error(
+                    400,
+                    format!("flags: {name:?} is not a flag; use convergence, boundary, popping or extrapolated"),
+                )
+            }
+        }
+    }
+
+    let mut state = shared.lock();
+    let Some(scene) = state.scene.clone() else {
+        return no_scene(&state);
+    };
+    if !state.frame_in_range(frame) {
+        return Reply::error(
+            404,
+            format!(
+                "frame {frame} is outside the timeline of {} (frames {} to {})",
+                scene.name, scene.first_frame, scene.last_frame
+            ),
+        );
+    }
+    let key = state.frame_key(method, frame);
+    let image_key = ImageKey {
+        frame: key,
+        exposure_milli_stops: (exposure_stops * 1000.0).round() as i32,
+        overlay_bits,
+    };
+    let mut headers = vec![
+        ("X-Snell-Frame", frame.to_string()),
+        ("X-Snell-Generation", key.generation.to_string()),
+        ("X-Snell-Method", method.name().to_string()),
+    ];
+    if extension == "png" {
+        if let Some(bytes) = state.images.get(&image_key) {
+            state.queue_prefetch(key);
+            drop(state);
+            shared.wake.notify_all();
+            headers.push(("X-Snell-Cache", "image".to_string()));
+            return png_reply(bytes.as_ref().clone(), headers);
+        }
+    }
+    drop(state);
+    let (cached, was_cached) = match wait_for_frame(shared, key) {
+        Ok(found) => found,
+        Err(reply) => return reply,
+    };
+    headers.push((
+        "X-Snell-Cache",
+        if was_cached { "frame" } else { "miss" }.to_string(),
+    ));
+    if extension == "json" {
+        let mut reply = Reply::json(
+            200,
+            json!({
+                "frame": frame,
+                "method": method.name(),
+                "generation": key.generation,
+                "counts": cached.counts,
+                "stage_secs": cached.stage_secs,
+            }),
+        );
+        reply.headers = headers;
+        return reply;
+    }
+    let bytes = Arc::new(encode_png(&cached, exposure_stops, overlay_bits));
+    shared.lock().images.insert(image_key, Arc::clone(&bytes));
+    png_reply(bytes.as_ref().clone(), headers)
+}
+
+fn png_reply(body: Vec<u8>, headers: Vec<(&'static str, String)>) -> Reply {
+    Reply {
+        status: 200,
+        content_type: "image/png",
+        body,
+        headers,
+    }
+}
+
+/// The frame of `key`, waiting for the worker when it is not cached (then asking for it first).
+/// Returns whether it was already cached.
+fn wait_for_frame(shared: &Shared, key: FrameKey) -> Result<(Arc<CachedFrame>, bool), Reply> {
+    let deadline = Instant::now() + FRAME_WAIT;
+    let mut state = shared.lock();
+    let mut was_cached = true;
+    loop {
+        if state.generation != key.generation {
+            return Err(Reply::error(
+                409,
+                "the scene was reloaded while this frame was rendering; ask again",
+            ));
+        }
+        if let Some(frame) = state.frames.get(&key) {
+            state.queue_prefetch(key);
+            drop(state);
+            shared.wake.notify_all();
+            return Ok((frame, was_cached));
+        }
+        if let Some((status, message)) = state.failed.get(&key) {
+            return Err(Reply::error(*status, message.clone()));
+        }
+        if let Some(problem) = &state.renderer_problem {
+            return Err(Reply::error(500, format!("no GPU renderer: {problem}")));
+        }
+        was_cached = false;
+        if state.demand.front() != Some(&key) {
+            state.demand.retain(|k| *k != key);
+            state.demand.push_front(key);
+            shared.wake.notify_all();
+        }
+        let now = Instant::now();
+        if now >= deadline {
+            return Err(Reply::error(
+                503,
+                format!(
+                    "frame {} was not rendered within {} s",
+                    key.frame,
+                    FRAME_WAIT.as_secs()
+                ),
+            ));
+        }
+        state = shared
+            .wake
+            .wait_timeout(state, deadline - now)
+            .unwrap_or_else(|poisoned| poisoned.into_inner())
+            .0;
+    }
+}
+
+/// Tone-maps, overlays the chosen flag masks (each flagged pixel blended towards its flag's
+/// colour; when several flags are chosen the first in [`OVERLAYS`] order wins), encodes PNG.
+fn encode_png(frame: &CachedFrame, exposure_stops: f32, overlay_bits: u32) -> Vec<u8> {
+    let mut image = crate::output::tonemap::tonemap_srgb8(&frame.rendered, exposure_stops);
+    if overlay_bits != 0 {
+        overlay_flags(&mut image, &frame.rendered.flags, overlay_bits);
+    }
+    let mut bytes = Vec::new();
+    let encoder = image::codecs::png::PngEncoder::new_with_quality(
+        Cursor::new(&mut bytes),
+        image::codecs::png::CompressionType::Fast,
+        image::codecs::png::FilterType::Sub,
+    );
+    image
+        .write_with_encoder(encoder)
+        .expect("PNG encoding into memory cannot fail");
+    bytes
+}
+
+/// How strongly a flagged pixel takes its flag's colour (enough to see, not enough to hide what
+/// is under it).
+const OVERLAY_OPACITY: f32 = 0.6;
+
+fn overlay_flags(image: &mut RgbaImage, flags: &[u32], overlay_bits: u32) {
+    for (pixel, &bits) in image.pixels_mut().zip(flags) {
+        let chosen = bits & overlay_bits;
+        if chosen == 0 {
+            continue;
+        }
+        let Some((_, _, color)) = OVERLAYS.iter().find(|(_, bit, _)| chosen & bit != 0) else {
+            continue;
+        };
+        for channel in 0..3 {
+            let under = pixel.0[channel] as f32;
+            let over = color[channel] as f32;
+            pixel.0[channel] = (under + (over - under) * OVERLAY_OPACITY).round() as u8;
+        }
+        pixel.0[3] = 255;
+    }
+}
+
+/// A URL query string, percent-decoded.
+struct Query(Vec<(String, String)>);
+
+impl Query {
+    fn parse(query: &str) -> Query {
+        Query(
+            query
+                .split('&')
+                .filter(|pair| !pair.is_empty())
+                .map(|pair| {
+                    let (key, value) = pair.split_once('=').unwrap_or((pair, ""));
+                    (percent_decode(key), percent_decode(value))
+                })
+                .collect(),
+        )
+    }
+
+    fn get(&self, key: &str) -> Option<&str> {
+        self.0
+            .iter()
+            .find(|(k, _)| k == key)
+            .map(|(_, v)| v.as_str())
+    }
+
+    fn method(&self) -> Result<Method, Reply> {
+        match self.get("method") {
+            None | Some("") => Ok(Method::default()),
+            Some(text) => Method::parse(text).map_err(|error| Reply::error(400, error.to_string())),
+        }
+    }
+}
+
+fn percent_decode(text: &str) -> String {
+    let bytes = text.as_bytes();
+    let mut decoded = Vec::with_capacity(bytes.len());
+    let mut index = 0;
+    while index < bytes.len() {
+        match bytes[index] {
+            b'+' => decoded.push(b' '),
+            b'%' if index + 2 < bytes.len() => {
+                let hex = std::str::from_utf8(&bytes[index + 1..index + 3]).unwrap_or("");
+                match u8::from_str_radix(hex, 16) {
+                    Ok(byte) => {
+                        decoded.push(byte);
+                        index += 2;
+                    }
+                    Err(_) => decoded.push(b'%'),
+                }
+            }
+            byte => decoded.push(byte),
+        }
+        index += 1;
+    }
+    String::from_utf8_lossy(&decoded).into_owned()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn queries_are_percent_decoded() {
+        let query = Query::parse("flags=convergence%2Cpopping&exposure=-1.5&method=equal-t&x");
+        assert_eq!(query.get("flags"), Some("convergence,popping"));
+        assert_eq!(query.get("exposure"), Some("-1.5"));
+        assert_eq!(query.get("x"), Some(""));
+        assert_eq!(query.get("y"), None);
+        assert_eq!(percent_decode("a%2"), "a%2");
+        assert_eq!(percent_decode("%zz"), "%zz");
+        assert_eq!(percent_decode("100%25"), "100%");
+    }
+
+    #[test]
+    fn overlay_marks_only_chosen_flags() {
+        let mut image = RgbaImage::from_pixel(3, 1, image::Rgba([100, 100, 100, 255]));
+        let flags = [flag_bits::CONVERGENCE, flag_bits::BOUNDARY, 0];
+        overlay_flags(&mut image, &flags, flag_bits::CONVERGENCE);
+        assert_eq!(image.get_pixel(0, 0).0, [193, 40, 193, 255]);
+        assert_eq!(image.get_pixel(1, 0).0, [100, 100, 100, 255]);
+        assert_eq!(image.get_pixel(2, 0).0, [100, 100, 100, 255]);
+    }
+}

@@ -1,0 +1,443 @@
+//! `snell preview`: a local web page to scrub a scene's timeline. Receives a scene path and a
+//! preview size; serves on 127.0.0.1 a page (frame, timeline slider, play/pause, step, exposure,
+//! method, flag overlays, a strip of per-frame flag counts) and a small HTTP API:
+//!
+//! - `GET /` — the page (no external resources).
+//! - `GET /api/scene` — the scene's state: `revision` (changes whenever the page must refresh),
+//!   `generation` (changes when a new version of the scene is loaded), name, frame range, fps,
+//!   size, methods, the current load `problem` (file, line and message) and a `notice`.
+//! - `GET /api/frame/<N>.png?method=&exposure=&flags=` — frame N tone-mapped at `exposure` stops,
+//!   with the named flag masks (`convergence,boundary,popping,extrapolated`) overlaid.
+//! - `GET /api/frame/<N>.json?method=` — the frame's flag counts and seconds per stage.
+//! - `GET /api/strip?method=` — flag counts of every frame (null until computed).
+//!
+//! Frames are rendered on demand by one worker thread that owns the GPU renderer, cached (linear
+//! frames and encoded images, both bounded), and neighbours of the last requested frame are
+//! prefetched while the worker is otherwise idle; after that the worker computes the strip's
+//! counts (CPU only). Ripple states come from the simulation checkpoints under the output
+//! directory, so any frame is reachable without stepping from the start. A watcher thread polls
+//! the scene file and every file it references; a change reloads the scene (a new generation, so
+//! frames of the old one are never shown as the new one), and a scene error is shown on the page
+//! while the last good version stays available.
+
+pub mod client;
+mod http;
+mod lru;
+mod page;
+mod worker;
+
+use std::collections::{HashMap, VecDeque};
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Condvar, Mutex, MutexGuard};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant, SystemTime};
+
+use crate::draw::RenderedFrame;
+use crate::frame::{Method, RenderJob, SnellError};
+use crate::refraction::flags::FlagCounts;
+
+use lru::Lru;
+
+pub mod bench;
+
+/// How `snell preview` runs.
+#[derive(Clone, Debug)]
+pub struct PreviewOptions {
+    pub scene_path: PathBuf,
+    /// 0 picks a free port.
+    pub port: u16,
+    pub width: u32,
+    pub height: u32,
+    /// Where simulation checkpoints are read and written (default `output/<scene>/`, shared with
+    /// `snell render`, so a render's checkpoints serve the preview and the other way round).
+    pub out_dir: Option<PathBuf>,
+    /// How often the scene file and its assets are checked for changes.
+    pub watch_interval: Duration,
+}
+
+impl PreviewOptions {
+    pub fn new(scene_path: &Path) -> Self {
+        PreviewOptions {
+            scene_path: scene_path.to_path_buf(),
+            port: 8080,
+            width: 640,
+            height: 360,
+            out_dir: None,
+            watch_interval: Duration::from_millis(250),
+        }
+    }
+}
+
+/// Frames of different generations (scene versions) or methods never mix.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+struct FrameKey {
+    generation: u64,
+    method: Method,
+    frame: u32,
+}
+
+/// One encoded image: a frame at one exposure with one set of overlays.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+struct ImageKey {
+    frame: FrameKey,
+    /// Exposure in 1/1000 stop (floats are not hashable).
+    exposure_milli_stops: i32,
+    overlay_bits: u32,
+}
+
+/// A rendered frame kept for the page.
+struct CachedFrame {
+    rendered: RenderedFrame,
+    counts: FlagCounts,
+    stage_secs: std::collections::BTreeMap<String, f64>,
+}
+
+/// What the page shows about the loaded scene.
+#[derive(Clone, Debug, serde::Serialize)]
+struct SceneInfo {
+    name: String,
+    path: String,
+    first_frame: u32,
+    last_frame: u32,
+    fps: f64,
+}
+
+/// Flag counts of every frame of one method, filled by the worker.
+struct Strip {
+    counts: Vec<Option<FlagCounts>>,
+}
+
+struct State {
+    /// Bumped on every change the page must see (a reload, a scene error, a fix).
+    revision: u64,
+    /// Bumped when a new version of the scene is loaded.
+    generation: u64,
+    scene: Option<SceneInfo>,
+    /// The current scene problem (file, line, message), if the last load failed.
+    problem: Option<String>,
+    notice: Option<String>,
+    /// A freshly loaded job for the worker to take.
+    incoming_job: Option<RenderJob>,
+    /// Frames clients wait for, most recent first.
+    demand: VecDeque<FrameKey>,
+    /// Neighbours of the last requested frame, nearest first.
+    prefetch: VecDeque<FrameKey>,
+    frames: Lru<FrameKey, Arc<CachedFrame>>,
+    /// Why a frame could not be rendered: HTTP status (422 for the scene's fault, 500 for the
+    /// renderer's) and message.
+    failed: HashMap<FrameKey, (u16, String)>,
+    images: Lru<ImageKey, Arc<Vec<u8>>>,
+    /// Strips by method; the worker fills the ones present here.
+    strips: HashMap<Method, Strip>,
+    /// Set when the GPU renderer cannot be created: every frame request fails with it.
+    renderer_problem: Option<String>,
+    /// The worker is rendering or refracting (for the bench: it waits for an idle worker).
+    worker_busy: bool,
+    stopping: bool,
+}
+
+impl State {
+    fn frame_key(&self, method: Method, frame: u32) -> FrameKey {
+        FrameKey {
+            generation: self.generation,
+            method,
+            frame,
+        }
+    }
+
+    fn frame_in_range(&self, frame: u32) -> bool {
+        self.scene
+            .as_ref()
+            .is_some_and(|s| (s.first_frame..=s.last_frame).contains(&frame))
+    }
+
+    /// Queues the neighbours of `key` (forward first: playback and scrubbing mostly go forward).
+    fn queue_prefetch(&mut self, key: FrameKey) {
+        self.prefetch.clear();
+        for offset in [1i64, 2, -1, 3, 4, -2] {
+            let frame = key.frame as i64 + offset;
+            if frame < 0 || !self.frame_in_range(frame as u32) {
+                continue;
+            }
+            let neighbour = FrameKey {
+                frame: frame as u32,
+                ..key
+            };
+            if !self.frames.contains(&neighbour) && !self.failed.contains_key(&neighbour) {
+                self.prefetch.push_back(neighbour);
+            }
+        }
+    }
+}
+
+struct Shared {
+    state: Mutex<State>,
+    /// Signalled when work arrives for the worker and when a frame is done.
+    wake: Condvar,
+    width: u32,
+    height: u32,
+    out_dir: Option<PathBuf>,
+}
+
+impl Shared {
+    fn lock(&self) -> MutexGuard<'_, State> {
+        // A panicking request thread must not take the server down with a poisoned lock.
+        self.state
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner())
+    }
+}
+
+/// A running preview server.
+pub struct PreviewServer {
+    shared: Arc<Shared>,
+    server: Arc<tiny_http::Server>,
+    url: String,
+    threads: Vec<JoinHandle<()>>,
+    http_threads: usize,
+}
+
+/// Requests served at once; more wait in the listener's queue.
+const HTTP_THREADS: usize = 4;
+
+impl PreviewServer {
+    /// Binds 127.0.0.1:`port`, loads the scene (a broken scene is shown on the page, not an
+    /// error here) and starts serving. Fails only when the port cannot be bound.
+    pub fn start(options: PreviewOptions) -> Result<PreviewServer, SnellError> {
+        let server = tiny_http::Server::http(("127.0.0.1", options.port)).map_err(|error| {
+            SnellError::Argument(format!(
+                "cannot listen on 127.0.0.1:{}: {error}; choose another port with --port (0 picks a free one)",
+                options.port
+            ))
+        })?;
+        let port = server
+            .server_addr()
+            .to_ip()
+            .map(|address| address.port())
+            .unwrap_or(options.port);
+        let url = format!("http://127.0.0.1:{port}/");
+        let frame_bytes = options.width as usize * options.height as usize * 40;
+        // About 1 GiB of linear frames (8 MiB each at 640x360: 128 frames), at least 8.
+        let frame_capacity = ((1usize << 30) / frame_bytes.max(1)).clamp(8, 512);
+        let shared = Arc::new(Shared {
+            state: Mutex::new(State {
+                revision: 0,
+                generation: 0,
+                scene: None,
+                problem: None,
+                notice: None,
+                incoming_job: None,
+                demand: VecDeque::new(),
+                prefetch: VecDeque::new(),
+                frames: Lru::new(frame_capacity),
+                failed: HashMap::new(),
+                images: Lru::new(256),
+                strips: HashMap::new(),
+                renderer_problem: None,
+                worker_busy: false,
+                stopping: false,
+            }),
+            wake: Condvar::new(),
+            width: options.width,
+            height: options.height,
+            out_dir: options.out_dir.clone(),
+        });
+        let mut watcher = Watcher::new(options.scene_path.clone());
+        watcher.reload(&shared);
+
+        let server = Arc::new(server);
+        let mut threads = Vec::new();
+        for index in 0..HTTP_THREADS {
+            let server = Arc::clone(&server);
+            let shared = Arc::clone(&shared);
+            threads.push(
+                std::thread::Builder::new()
+                    .name(format!("preview-http-{index}"))
+                    .spawn(move || http::serve(&server, &shared))
+                    .expect("spawning a thread"),
+            );
+        }
+        let worker_shared = Arc::clone(&shared);
+        threads.push(
+            std::thread::Builder::new()
+                .name("preview-render".into())
+                .spawn(move || worker::run(&worker_shared))
+                .expect("spawning a thread"),
+        );
+        let watch_shared = Arc::clone(&shared);
+        let interval = options.watch_interval;
+        threads.push(
+            std::thread::Builder::new()
+                .name("preview-watch".into())
+                .spawn(move || watcher.run(&watch_shared, interval))
+                .expect("spawning a thread"),
+        );
+        Ok(PreviewServer {
+            shared,
+            server,
+            url,
+            threads,
+            http_threads: HTTP_THREADS,
+        })
+    }
+
+    /// `http://127.0.0.1:<port>/`.
+    pub fn url(&self) -> &str {
+        &self.url
+    }
+
+    /// Serves until the process ends.
+    pub fn wait(self) {
+        for thread in self.threads {
+            let _ = thread.join();
+        }
+    }
+
+    /// Stops every thread and closes the socket.
+    pub fn stop(self) {
+        self.shared.lock().stopping = true;
+        self.shared.wake.notify_all();
+        for _ in 0..self.http_threads {
+            self.server.unblock();
+        }
+        for thread in self.threads {
+            let _ = thread.join();
+        }
+    }
+}
+
+/// Size and modification time of a file (None: missing); the scene file itself is compared by
+/// content, because an edit can keep its size and land within the file system's time resolution.
+type FileStamp = Option<(SystemTime, u64)>;
+
+/// Watches the scene file and the files it references, and reloads the scene when they change.
+struct Watcher {
+    scene_path: PathBuf,
+    scene_hash: Option<blake3::Hash>,
+    assets: Vec<(PathBuf, FileStamp)>,
+}
+
+fn stamp(path: &Path) -> FileStamp {
+    let metadata = std::fs::metadata(path).ok()?;
+    Some((metadata.modified().ok()?, metadata.len()))
+}
+
+impl Watcher {
+    fn new(scene_path: PathBuf) -> Self {
+        Watcher {
+            scene_path,
+            scene_hash: None,
+            assets: Vec::new(),
+        }
+    }
+
+    fn scene_hash_now(&self) -> Option<blake3::Hash> {
+        std::fs::read(&self.scene_path)
+            .ok()
+            .map(|bytes| blake3::hash(&bytes))
+    }
+
+    fn changed(&self) -> bool {
+        self.scene_hash_now() != self.scene_hash
+            || self.assets.iter().any(|(path, old)| stamp(path) != *old)
+    }
+
+    fn run(mut self, shared: &Shared, interval: Duration) {
+        loop {
+            std::thread::sleep(interval);
+            if shared.lock().stopping {
+                return;
+            }
+            if self.changed() {
+                self.reload(shared);
+            }
+        }
+    }
+
+    /// Loads the scene; on success hands the job to the worker as a new generation, on failure
+    /// shows the problem and keeps the last good version.
+    fn reload(&mut self, shared: &Shared) {
+        let started = Instant::now();
+        self.scene_hash = self.scene_hash_now();
+        let loaded = RenderJob::prepare(&self.scene_path).and_then(|job| {
+            let out_dir = shared
+                .out_dir
+                .clone()
+                .unwrap_or_else(|| PathBuf::from("output").join(job.scene_name()));
+            job.use_checkpoints(&out_dir)?;
+            Ok(job)
+        });
+        let mut state = shared.lock();
+        let reloading = state.scene.is_some() || state.problem.is_some();
+        state.revision += 1;
+        match loaded {
+            Ok(job) => {
+                self.assets = job
+                    .input_files()
+                    .into_iter()
+                    .filter(|path| path != &self.scene_path)
+                    .map(|path| {
+                        let stamp = stamp(&path);
+                        (path, stamp)
+                    })
+                    .collect();
+                let timeline = job.timeline();
+                let timeline_first = timeline.first_frame;
+                state.scene = Some(SceneInfo {
+                    name: job.scene_name().to_string(),
+                    path: self.scene_path.display().to_string(),
+                    first_frame: timeline.first_frame,
+                    last_frame: timeline.last_frame,
+                    fps: timeline.fps,
+                });
+                state.generation += 1;
+                state.problem = None;
+                state.notice = reloading.then(|| {
+                    format!(
+                        "{} changed on disk: reloaded at {} ({:.0} ms)",
+                        self.scene_path.display(),
+                        clock_time(),
+                        started.elapsed().as_secs_f64() * 1e3
+                    )
+                });
+                state.incoming_job = Some(job);
+                state.demand.clear();
+                state.prefetch.clear();
+                state.frames.clear();
+                state.failed.clear();
+                state.images.clear();
+                // The first frame is rendered at once: the page asks for it first, and the
+                // renderer's first frame (pipelines, textures) is the slowest.
+                let first = state.frame_key(Method::default(), timeline_first);
+                state.prefetch.push_back(first);
+                let methods: Vec<Method> = state.strips.keys().copied().collect();
+                state.strips.clear();
+                for method in methods.into_iter().chain([Method::default()]) {
+                    worker::want_strip(&mut state, method);
+                }
+            }
+            Err(error) => {
+                state.problem = Some(error.to_string());
+                state.notice = state.scene.is_some().then(|| {
+                    "the scene has an error: showing the last version that loaded".to_string()
+                });
+            }
+        }
+        drop(state);
+        shared.wake.notify_all();
+    }
+}
+
+/// The time of day (UTC) as HH:MM:SS, for notices.
+fn clock_time() -> String {
+    let secs = SystemTime::now()
+        .duration_since(SystemTime::UNIX_EPOCH)
+        .map(|d| d.as_secs())
+        .unwrap_or(0);
+    format!(
+        "{:02}:{:02}:{:02} UTC",
+        secs / 3600 % 24,
+        secs / 60 % 60,
+        secs % 60
+    )
+}
