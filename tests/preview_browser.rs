@@ -201,7 +201,7 @@ async fn preview_page_in_headless_chromium() {
     let original =
         std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/pool.toml"))
             .unwrap();
-    std::fs::write(&scene, &original).unwrap();
+    save(&scene, &original);
     let (_preview, url) = start_preview(&scene, &temp.path().join("out"));
     let (_driver, driver_url) = start_chromedriver();
     let client = connect(&driver_url).await;
@@ -294,7 +294,7 @@ async fn preview_page_in_headless_chromium() {
     );
 
     // A broken edit shows the error (file and line) on the page and keeps the last good frame.
-    std::fs::write(&scene, format!("bogus_key = 1\n{original}")).unwrap();
+    save(&scene, format!("bogus_key = 1\n{original}"));
     let problem = wait_for(
         &client,
         "the scene error on the page",
@@ -309,7 +309,7 @@ async fn preview_page_in_headless_chromium() {
         "the page should show file, line and cause: {problem}"
     );
     // A fixed edit recovers: the error goes and the frame is shown from the new scene version.
-    std::fs::write(&scene, &original).unwrap();
+    save(&scene, &original);
     wait_for(
         &client,
         "the error to clear",
@@ -340,4 +340,11 @@ async fn preview_page_in_headless_chromium() {
         "the recovered scene shows the same frame"
     );
     client.close().await.unwrap();
+}
+
+/// Saves a scene as editors do: a temporary file renamed over the old one.
+fn save(path: &Path, contents: impl AsRef<[u8]>) {
+    let temporary = path.with_extension("toml.saving");
+    std::fs::write(&temporary, contents).unwrap();
+    std::fs::rename(&temporary, path).unwrap();
 }

@@ -311,10 +311,23 @@ impl PreviewServer {
 type FileStamp = Option<(SystemTime, u64)>;
 
 /// Watches the scene file and the files it references, and reloads the scene when they change.
+/// A change is acted on once it has held for one poll, so a file caught half-written (an editor
+/// that truncates, then writes) is not loaded as a scene of its own.
 struct Watcher {
     scene_path: PathBuf,
-    scene_hash: Option<blake3::Hash>,
-    assets: Vec<(PathBuf, FileStamp)>,
+    /// What was loaded last (successfully or not).
+    loaded: Fingerprint,
+    /// A change seen at the last poll, waiting to hold still.
+    pending: Option<Fingerprint>,
+    /// The files the last good scene referenced (besides the scene file).
+    assets: Vec<PathBuf>,
+}
+
+/// The scene file's content hash and the stamps of its assets.
+#[derive(Clone, Debug, PartialEq)]
+struct Fingerprint {
+    scene: Option<blake3::Hash>,
+    assets: Vec<FileStamp>,
 }
 
 fn stamp(path: &Path) -> FileStamp {
@@ -326,20 +339,22 @@ impl Watcher {
     fn new(scene_path: PathBuf) -> Self {
         Watcher {
             scene_path,
-            scene_hash: None,
+            loaded: Fingerprint {
+                scene: None,
+                assets: Vec::new(),
+            },
+            pending: None,
             assets: Vec::new(),
         }
     }
 
-    fn scene_hash_now(&self) -> Option<blake3::Hash> {
-        std::fs::read(&self.scene_path)
-            .ok()
-            .map(|bytes| blake3::hash(&bytes))
-    }
-
-    fn changed(&self) -> bool {
-        self.scene_hash_now() != self.scene_hash
-            || self.assets.iter().any(|(path, old)| stamp(path) != *old)
+    fn fingerprint(&self) -> Fingerprint {
+        Fingerprint {
+            scene: std::fs::read(&self.scene_path)
+                .ok()
+                .map(|bytes| blake3::hash(&bytes)),
+            assets: self.assets.iter().map(|path| stamp(path)).collect(),
+        }
     }
 
     fn run(mut self, shared: &Shared, interval: Duration) {
@@ -348,8 +363,13 @@ impl Watcher {
             if shared.lock().stopping {
                 return;
             }
-            if self.changed() {
+            let now = self.fingerprint();
+            if now == self.loaded {
+                self.pending = None;
+            } else if self.pending.as_ref() == Some(&now) {
                 self.reload(shared);
+            } else {
+                self.pending = Some(now);
             }
         }
     }
@@ -358,7 +378,8 @@ impl Watcher {
     /// shows the problem and keeps the last good version.
     fn reload(&mut self, shared: &Shared) {
         let started = Instant::now();
-        self.scene_hash = self.scene_hash_now();
+        self.pending = None;
+        let scene_before = self.fingerprint().scene;
         let loaded = RenderJob::prepare(&self.scene_path).and_then(|job| {
             let out_dir = shared
                 .out_dir
@@ -376,10 +397,6 @@ impl Watcher {
                     .input_files()
                     .into_iter()
                     .filter(|path| path != &self.scene_path)
-                    .map(|path| {
-                        let stamp = stamp(&path);
-                        (path, stamp)
-                    })
                     .collect();
                 let timeline = job.timeline();
                 let timeline_first = timeline.first_frame;
@@ -424,6 +441,12 @@ impl Watcher {
             }
         }
         drop(state);
+        // The scene file as it was read (a later edit is seen at the next poll); asset stamps as
+        // they are now.
+        self.loaded = Fingerprint {
+            scene: scene_before,
+            ..self.fingerprint()
+        };
         shared.wake.notify_all();
     }
 }
