@@ -79,7 +79,7 @@ fn temporary_path_for(path: &Path) -> PathBuf {
 /// Writes `path` atomically: creates the parent directory, lets `write_contents` fill a temporary
 /// file beside it, syncs it to disk and renames it over `path`. On any error the temporary file is
 /// removed and `path` is left as it was.
-fn write_atomically(
+pub(crate) fn write_atomically(
     path: &Path,
     write_contents: impl FnOnce(&mut File) -> Result<(), String>,
 ) -> Result<(), OutputError> {
