@@ -478,7 +478,8 @@ pub fn compare_frames(
         };
         findings.push(Finding {
             verdict,
-            message: format!("{name} {shown} > {level} level {limit}"),
+            // Levels arrive as f32 or f64; shown as the f32 they were typed as (0.015, not 0.01499..).
+            message: format!("{name} {shown} > {level} level {}", limit as f32),
         });
     };
     judge(
