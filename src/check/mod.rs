@@ -621,6 +621,8 @@ pub struct FramePair {
     pub name: String,
     pub reference: PathBuf,
     pub test: PathBuf,
+    /// Appended to the failure when the reference does not exist (e.g. how to bless it).
+    pub missing_reference_hint: String,
 }
 
 /// Compares one pair of files. A missing or unreadable file is an `Err` naming it; the heat map is
@@ -658,12 +660,10 @@ pub fn compare_pair(
 
 /// Compares every pair (in parallel); a pair that cannot be compared becomes a failing row whose
 /// message names the file, so one bad frame does not hide the verdicts of the others.
-/// `missing_reference_hint` is appended when a reference file does not exist.
 pub fn compare_pairs(
     pairs: &[FramePair],
     thresholds: &Thresholds,
     heatmap_dir: Option<&Path>,
-    missing_reference_hint: &str,
 ) -> DiffReport {
     let frames = pairs
         .par_iter()
@@ -671,7 +671,7 @@ pub fn compare_pairs(
             compare_pair(pair, thresholds, heatmap_dir).unwrap_or_else(|error| {
                 let mut message = error.to_string();
                 if matches!(&error, CheckError::Missing { path } if *path == pair.reference) {
-                    message.push_str(missing_reference_hint);
+                    message.push_str(&pair.missing_reference_hint);
                 }
                 FrameComparison::failed(
                     pair.name.clone(),
@@ -729,6 +729,7 @@ pub fn diff_paths(
                 },
                 reference: reference.to_path_buf(),
                 test: test.to_path_buf(),
+                missing_reference_hint: String::new(),
             };
             Ok(DiffReport {
                 frames: vec![compare_pair(&pair, thresholds, heatmap_dir)?],
@@ -748,10 +749,10 @@ pub fn diff_paths(
                     name: name.clone(),
                     reference: reference.join(name),
                     test: test.join(name),
+                    missing_reference_hint: format!(" (the frame is only in {})", test.display()),
                 })
                 .collect();
-            let hint = format!(" (the frame is only in {})", test.display());
-            let mut report = compare_pairs(&pairs, thresholds, heatmap_dir, &hint);
+            let mut report = compare_pairs(&pairs, thresholds, heatmap_dir);
             for frame in &mut report.frames {
                 if !test_names.contains(&frame.name) {
                     frame.findings = vec![Finding {

@@ -101,15 +101,19 @@ impl SceneCheck<'_> {
                         .unwrap_or_default(),
                     reference: golden,
                     test: self.rendered_path(frame),
+                    missing_reference_hint: format!(
+                        " (no golden yet: look at the render {}, then write the golden with \
+                         `snell check {} --golden {} --frames {frame} --size {}x{} --bless`)",
+                        self.rendered_path(frame).display(),
+                        self.job.scene.path.display(),
+                        self.golden_dir.display(),
+                        self.size.0,
+                        self.size.1
+                    ),
                 }
             })
             .collect();
-        let hint = format!(
-            " (no golden yet: look at the render, then write it with `snell check {} --golden {} --bless`)",
-            self.job.scene.path.display(),
-            self.golden_dir.display()
-        );
-        Ok(compare_pairs(&pairs, &self.thresholds, heatmap_dir, &hint))
+        Ok(compare_pairs(&pairs, &self.thresholds, heatmap_dir))
     }
 
     /// Renders the frames and (re)writes them as the goldens, each atomically. Returns the
