@@ -22,8 +22,9 @@ pub struct ThresholdArgs {
     /// (llvmpipe) render of the same frame, mean 0.0042-0.0051.
     #[arg(long, value_name = "FLIP", default_value_t = defaults::FLIP_MEAN_WARN)]
     pub flip_mean_warn: f32,
-    /// Mean FLIP above which a frame fails. The default is half the smallest difference between
-    /// two consecutive frames of the project's scenes (0.026 and up), 3x the Vulkan-vs-GL figure.
+    /// Mean FLIP above which a frame fails. The default is three times the Vulkan-vs-GL figure
+    /// and well below the smallest difference between two consecutive frames of the project's
+    /// scenes (0.026 and up).
     #[arg(long, value_name = "FLIP", default_value_t = defaults::FLIP_MEAN_FAIL)]
     pub flip_mean_fail: f32,
     /// 99th-percentile FLIP above which a frame warns: catches a small object moved, which the mean
