@@ -11,11 +11,15 @@
 //! 4. [`gpu`]        — wgpu passes: true geometry, stencil of visible water, virtual geometry, Fresnel sky.
 //! 5. [`output`]     — multi-layer OpenEXR frames, per-frame report, tone-mapped previews, image comparison.
 //!
+//! [`check`] compares frames (EXR files, or a scene's renders against goldens) for CI: FLIP,
+//! Z/P tolerances, exact flag counts, JUnit.
+//!
 //! [`frame`] ties the stages together: one `render_frame` entry point used identically by the CLI
 //! and by the tests.
 
 pub mod camera;
 pub mod character;
+pub mod check;
 pub mod color;
 pub mod draw;
 pub mod frame;

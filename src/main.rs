@@ -98,6 +98,21 @@ enum Command {
         #[arg(long, default_value_t = 8)]
         frames: u32,
     },
+    /// Compare two EXR frames, or two directories of frames matched by file name: FLIP on the
+    /// tone-mapped beauty (mean and 99th percentile), Z and P within tolerances, flag counts exactly.
+    ///
+    /// Prints a table per frame and exits like OpenImageIO's idiff: 0 every frame passes, 1 some
+    /// frame warns, 2 some frame fails (a frame on one side only fails) or an input cannot be read.
+    /// Frames that warn or fail get a FLIP heat map, <frame>-difference.png (black = equal,
+    /// yellow = very different).
+    Diff(snell::check::cli::DiffArgs),
+    /// Render a scene's frames and compare them with golden EXR frames (as `snell diff` does):
+    /// a CI frame-diff test. A missing golden fails; --bless writes the goldens.
+    ///
+    /// Typical use: `snell check scenes/pool.toml --golden ci/golden --frames 1-3 --bless` once,
+    /// commit the goldens, then run the same line without --bless in CI (no GPU needed: Mesa's
+    /// lavapipe or llvmpipe render on the CPU). Exit codes as for `snell diff`.
+    Check(snell::check::cli::CheckArgs),
 }
 
 fn main() -> ExitCode {
@@ -110,6 +125,8 @@ fn main() -> ExitCode {
     quiet_vulkan_runtime_dir();
     let cli = Cli::parse();
     let result = match cli.command {
+        Command::Diff(args) => return ExitCode::from(snell::check::cli::run_diff(&args)),
+        Command::Check(args) => return ExitCode::from(snell::check::cli::run_check(&args)),
         Command::Render {
             scene,
             frames,

@@ -535,6 +535,11 @@ impl RenderJob {
                     CONVERGENCE_POLICY.to_string(),
                 ),
                 ("scene".to_string(), self.scene.path.display().to_string()),
+                // So a lone EXR carries its flag counts (`snell diff` compares them exactly).
+                (
+                    "flagCounts".to_string(),
+                    serde_json::to_string(&refracted.counts).expect("flag counts serialise"),
+                ),
             ],
         }
     }

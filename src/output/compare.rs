@@ -1,21 +1,9 @@
-//! Image comparison for golden tests: receives two 8-bit sRGB images (tone-mapped previews) and
-//! returns NVIDIA's FLIP error (per-pixel perceptual difference in [0, 1], its mean and
-//! percentiles, a magma heat map); [`check_golden`] compares a rendered image with the golden PNG
-//! and explains every failure.
-//!
-//! Goldens are written only when `SNELL_BLESS=1` is set; a missing golden fails (a test that
-//! writes its own expectation and passes checks nothing). A failed comparison writes
-//! `<name>-actual.png` and `<name>-difference.png` beside the golden. FLIP compares RGB only:
-//! previews are opaque, so alpha is ignored.
-
-use std::path::{Path, PathBuf};
+//! Image comparison: receives two 8-bit sRGB images (tone-mapped previews) and returns NVIDIA's
+//! FLIP error (per-pixel perceptual difference in [0, 1], its mean and percentiles, a magma heat
+//! map). FLIP compares RGB only: previews are opaque, so alpha is ignored. Verdicts on frames
+//! (thresholds, goldens, reports) are the business of [`crate::check`].
 
 use image::RgbaImage;
-
-use super::save_png_atomic;
-
-/// The environment variable that makes [`check_golden`] (re)write goldens instead of comparing.
-pub const BLESS_ENV: &str = "SNELL_BLESS";
 
 /// FLIP of a test image against a reference.
 #[derive(Clone, Debug)]
@@ -112,135 +100,6 @@ pub fn flip_ldr(reference: &RgbaImage, test: &RgbaImage) -> Result<FlipResult, S
     })
 }
 
-/// When a comparison passes. Each use should carry a comment giving the cause of its tolerance.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum FlipThreshold {
-    /// The mean FLIP error is at most this.
-    Mean(f32),
-    /// At least a fraction `p` (in [0, 1]) of the pixels have a FLIP error at most `t`.
-    Percentile { p: f32, t: f32 },
-}
-
-impl FlipThreshold {
-    fn passes(&self, result: &FlipResult) -> bool {
-        match *self {
-            FlipThreshold::Mean(limit) => result.mean <= limit,
-            FlipThreshold::Percentile { p, t } => result.percentile(p) <= t,
-        }
-    }
-}
-
-#[derive(Clone, Debug, PartialEq)]
-pub enum GoldenOutcome {
-    /// The image matched the golden within the threshold.
-    Passed { mean: f32, p99: f32 },
-    /// `SNELL_BLESS=1`: the golden was (re)written from the image.
-    Blessed { path: PathBuf },
-}
-
-#[derive(Debug, thiserror::Error)]
-pub enum GoldenError {
-    #[error("golden {path} does not exist; render it, look at it, and bless it by rerunning with {BLESS_ENV}=1")]
-    Missing { path: PathBuf },
-    #[error("cannot read golden {path}: {cause}")]
-    Unreadable { path: PathBuf, cause: String },
-    #[error(
-        "{path}: {mismatch}; the rendered image is in {actual}. If the new size is intended, rerun with {BLESS_ENV}=1"
-    )]
-    SizeDiffers {
-        path: PathBuf,
-        mismatch: SizeMismatch,
-        actual: PathBuf,
-    },
-    #[error(
-        "{path}: FLIP mean {mean:.5}, 99th percentile {p99:.5}, fails {threshold:?}; see {actual} and {difference}. \
-         If the change is intended, rerun with {BLESS_ENV}=1"
-    )]
-    AboveThreshold {
-        path: PathBuf,
-        mean: f32,
-        p99: f32,
-        threshold: FlipThreshold,
-        actual: PathBuf,
-        difference: PathBuf,
-    },
-    #[error(transparent)]
-    Output(#[from] super::OutputError),
-}
-
-/// Compares `actual` with `<golden_dir>/<name>.png`, or (re)writes that golden when the
-/// environment has `SNELL_BLESS=1`.
-pub fn check_golden(
-    golden_dir: &Path,
-    name: &str,
-    actual: &RgbaImage,
-    threshold: FlipThreshold,
-) -> Result<GoldenOutcome, GoldenError> {
-    let bless = std::env::var(BLESS_ENV).is_ok_and(|value| value == "1");
-    check_golden_with(golden_dir, name, actual, threshold, bless)
-}
-
-/// [`check_golden`] with the bless decision made by the caller (tests cannot set the environment
-/// safely while other tests run).
-pub fn check_golden_with(
-    golden_dir: &Path,
-    name: &str,
-    actual: &RgbaImage,
-    threshold: FlipThreshold,
-    bless: bool,
-) -> Result<GoldenOutcome, GoldenError> {
-    let golden_path = golden_dir.join(format!("{name}.png"));
-    let actual_path = golden_dir.join(format!("{name}-actual.png"));
-    let difference_path = golden_dir.join(format!("{name}-difference.png"));
-    let remove_stale_failure_images = || {
-        // Left from an earlier failing run; they would only mislead now.
-        let _ = std::fs::remove_file(&actual_path);
-        let _ = std::fs::remove_file(&difference_path);
-    };
-    if bless {
-        save_png_atomic(&golden_path, actual)?;
-        remove_stale_failure_images();
-        return Ok(GoldenOutcome::Blessed { path: golden_path });
-    }
-    if !golden_path.exists() {
-        return Err(GoldenError::Missing { path: golden_path });
-    }
-    let golden = image::open(&golden_path)
-        .map_err(|error| GoldenError::Unreadable {
-            path: golden_path.clone(),
-            cause: error.to_string(),
-        })?
-        .to_rgba8();
-    let result = match flip_ldr(&golden, actual) {
-        Ok(result) => result,
-        Err(mismatch) => {
-            save_png_atomic(&actual_path, actual)?;
-            return Err(GoldenError::SizeDiffers {
-                path: golden_path,
-                mismatch,
-                actual: actual_path,
-            });
-        }
-    };
-    if threshold.passes(&result) {
-        remove_stale_failure_images();
-        return Ok(GoldenOutcome::Passed {
-            mean: result.mean,
-            p99: result.p99,
-        });
-    }
-    save_png_atomic(&actual_path, actual)?;
-    save_png_atomic(&difference_path, &result.error_map_png)?;
-    Err(GoldenError::AboveThreshold {
-        path: golden_path,
-        mean: result.mean,
-        p99: result.p99,
-        threshold,
-        actual: actual_path,
-        difference: difference_path,
-    })
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -264,30 +123,12 @@ mod tests {
     }
 
     #[test]
-    fn identical_images_have_zero_error_and_pass() {
+    fn identical_images_have_zero_error() {
         let image = pattern(64, 48, 0);
         let result = flip_ldr(&image, &image).unwrap();
         assert_eq!(result.mean, 0.0);
         assert_eq!(result.p99, 0.0);
         assert_eq!(result.error_map_png.dimensions(), (64, 48));
-
-        let temp = tempfile::tempdir().unwrap();
-        image.save(temp.path().join("tiles.png")).unwrap();
-        let outcome = check_golden_with(
-            temp.path(),
-            "tiles",
-            &image,
-            FlipThreshold::Mean(0.0),
-            false,
-        )
-        .unwrap();
-        assert_eq!(
-            outcome,
-            GoldenOutcome::Passed {
-                mean: 0.0,
-                p99: 0.0
-            }
-        );
     }
 
     #[test]
@@ -318,110 +159,5 @@ mod tests {
         assert_eq!(percentile_of_sorted(&sorted, 0.5), 50.0);
         assert_eq!(percentile_of_sorted(&sorted, 0.0), 1.0);
         assert_eq!(percentile_of_sorted(&sorted, 1.0), 100.0);
-    }
-
-    #[test]
-    fn missing_golden_fails_and_says_how_to_bless() {
-        let temp = tempfile::tempdir().unwrap();
-        let error = check_golden_with(
-            temp.path(),
-            "absent",
-            &pattern(8, 8, 0),
-            FlipThreshold::Mean(0.01),
-            false,
-        )
-        .unwrap_err();
-        assert!(matches!(error, GoldenError::Missing { .. }));
-        assert!(error.to_string().contains("SNELL_BLESS=1"), "{error}");
-        assert!(
-            !temp.path().join("absent.png").exists(),
-            "a missing golden must not be written"
-        );
-    }
-
-    #[test]
-    fn very_different_image_fails_and_writes_actual_and_difference() {
-        let temp = tempfile::tempdir().unwrap();
-        pattern(64, 48, 0)
-            .save(temp.path().join("tiles.png"))
-            .unwrap();
-        let actual = pattern(64, 48, 1);
-        // Would pass a threshold of 1 (FLIP's maximum); fails any meaningful one.
-        let error = check_golden_with(
-            temp.path(),
-            "tiles",
-            &actual,
-            FlipThreshold::Mean(0.01),
-            false,
-        )
-        .unwrap_err();
-        let GoldenError::AboveThreshold { mean, .. } = &error else {
-            panic!("unexpected {error}")
-        };
-        assert!(*mean > 0.01);
-        let message = error.to_string();
-        assert!(
-            message.contains("FLIP mean") && message.contains("SNELL_BLESS=1"),
-            "{message}"
-        );
-        let written_actual = image::open(temp.path().join("tiles-actual.png"))
-            .unwrap()
-            .to_rgba8();
-        assert_eq!(written_actual, actual);
-        let difference = image::open(temp.path().join("tiles-difference.png"))
-            .unwrap()
-            .to_rgba8();
-        assert_eq!(difference.dimensions(), (64, 48));
-
-        let percentile = FlipThreshold::Percentile { p: 0.5, t: 0.001 };
-        assert!(check_golden_with(temp.path(), "tiles", &actual, percentile, false).is_err());
-    }
-
-    #[test]
-    fn size_difference_fails() {
-        let temp = tempfile::tempdir().unwrap();
-        pattern(64, 48, 0)
-            .save(temp.path().join("tiles.png"))
-            .unwrap();
-        let error = check_golden_with(
-            temp.path(),
-            "tiles",
-            &pattern(32, 48, 0),
-            FlipThreshold::Mean(1.0),
-            false,
-        )
-        .unwrap_err();
-        assert!(matches!(error, GoldenError::SizeDiffers { .. }), "{error}");
-        assert!(
-            error.to_string().contains("64x48") && error.to_string().contains("32x48"),
-            "{error}"
-        );
-        assert!(temp.path().join("tiles-actual.png").exists());
-    }
-
-    #[test]
-    fn blessing_writes_the_golden_then_it_passes_and_stale_failures_go() {
-        let temp = tempfile::tempdir().unwrap();
-        let image = pattern(16, 16, 0);
-        std::fs::write(temp.path().join("tiles-actual.png"), b"stale").unwrap();
-        let outcome =
-            check_golden_with(temp.path(), "tiles", &image, FlipThreshold::Mean(0.0), true)
-                .unwrap();
-        assert_eq!(
-            outcome,
-            GoldenOutcome::Blessed {
-                path: temp.path().join("tiles.png")
-            }
-        );
-        assert!(!temp.path().join("tiles-actual.png").exists());
-        let outcome = check_golden_with(
-            temp.path(),
-            "tiles",
-            &image,
-            FlipThreshold::Mean(0.0),
-            false,
-        )
-        .unwrap();
-        assert!(matches!(outcome, GoldenOutcome::Passed { .. }));
     }
 }

@@ -1,6 +1,6 @@
 //! Stage 5, output: receives a [`crate::draw::RenderedFrame`] (linear HDR beauty, distance, true
 //! position, flag bits) and writes it as a multi-channel OpenEXR frame, appends its row to the
-//! per-frame JSONL report, tone-maps PNG previews, and compares images with FLIP for golden tests.
+//! per-frame JSONL report, tone-maps PNG previews, and compares images with FLIP.
 //! Every file is written to a temporary name beside its destination, synced and renamed, so an
 //! interrupted render never leaves a truncated file.
 
@@ -13,7 +13,7 @@ use std::fs::{self, File};
 use std::path::{Path, PathBuf};
 
 pub use self::exr::{frame_path, read_frame_exr, write_frame_exr, FrameMeta, ReadMeta};
-pub use compare::{check_golden, flip_ldr, FlipResult, FlipThreshold, GoldenError, GoldenOutcome};
+pub use compare::{flip_ldr, FlipResult};
 pub use report::{FrameReport, ReportWriter};
 pub use tonemap::{save_png_atomic, tonemap_srgb8};
 
@@ -79,7 +79,7 @@ fn temporary_path_for(path: &Path) -> PathBuf {
 /// Writes `path` atomically: creates the parent directory, lets `write_contents` fill a temporary
 /// file beside it, syncs it to disk and renames it over `path`. On any error the temporary file is
 /// removed and `path` is left as it was.
-fn write_atomically(
+pub(crate) fn write_atomically(
     path: &Path,
     write_contents: impl FnOnce(&mut File) -> Result<(), String>,
 ) -> Result<(), OutputError> {
