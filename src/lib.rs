@@ -12,7 +12,7 @@
 //! 5. [`output`]     — multi-layer OpenEXR frames, per-frame report, tone-mapped previews, image comparison.
 //!
 //! [`frame`] ties the stages together: one `render_frame` entry point used identically by the CLI
-//! and by the tests.
+//! and by the tests. [`interrupt`] turns Ctrl-C into a stop after the frame in flight.
 
 pub mod camera;
 pub mod character;
@@ -20,6 +20,7 @@ pub mod color;
 pub mod draw;
 pub mod frame;
 pub mod gpu;
+pub mod interrupt;
 pub mod mesh;
 pub mod output;
 pub mod refraction;
