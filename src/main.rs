@@ -220,11 +220,7 @@ fn resume_command_line(
     png: bool,
 ) -> String {
     let program = std::env::args().next().unwrap_or_else(|| "snell".into());
-    let mut words = vec![
-        program,
-        "render".into(),
-        scene_path.display().to_string(),
-    ];
+    let mut words = vec![program, "render".into(), scene_path.display().to_string()];
     if let Some(frames) = frames {
         words.extend(["--frames".into(), frames.to_string()]);
     }

@@ -115,8 +115,14 @@ mod tests {
             input_hash(&files, 160, 90, "virtual-vertices/equal-t"),
             hash
         );
-        assert_ne!(input_hash(&files, 160, 91, "virtual-vertices/equal-t"), hash);
-        assert_ne!(input_hash(&files, 90, 160, "virtual-vertices/equal-t"), hash);
+        assert_ne!(
+            input_hash(&files, 160, 91, "virtual-vertices/equal-t"),
+            hash
+        );
+        assert_ne!(
+            input_hash(&files, 90, 160, "virtual-vertices/equal-t"),
+            hash
+        );
         assert_ne!(input_hash(&files, 160, 90, "raytrace"), hash);
         assert_eq!(hash.hex().len(), 64);
 

@@ -56,9 +56,7 @@ impl SnellError {
     /// Whether the user's input (scene, arguments, output location) is at fault: exit code 2.
     pub fn is_bad_input(&self) -> bool {
         match self {
-            SnellError::Scene(_)
-            | SnellError::Argument(_)
-            | SnellError::Frame { .. } => true,
+            SnellError::Scene(_) | SnellError::Argument(_) | SnellError::Frame { .. } => true,
             SnellError::Checkpoint(error) => error.is_bad_input(),
             SnellError::Output(error) => error.is_bad_input(),
             SnellError::Gpu(_) => false,

@@ -273,7 +273,8 @@ impl RenderJob {
         } = *options;
         crate::output::ensure_output_dir(out_dir)?;
         crate::output::check_writable(out_dir)?;
-        let stale = crate::output::temporary::remove_stale(out_dir, crate::sim::checkpoint::CHECKPOINT_DIR);
+        let stale =
+            crate::output::temporary::remove_stale(out_dir, crate::sim::checkpoint::CHECKPOINT_DIR);
         if !stale.is_empty() {
             note(&format!(
                 "removed {} temporary file(s) left by a render that was killed: {}",
@@ -319,7 +320,9 @@ impl RenderJob {
                     }
                     bar.set_message(format!("frame {frame}"));
                     let previous = match last.take() {
-                        Some((last_frame, tracking)) if last_frame + 1 == frame => Ok(Some(tracking)),
+                        Some((last_frame, tracking)) if last_frame + 1 == frame => {
+                            Ok(Some(tracking))
+                        }
                         // After a skipped frame (or at the start): frame - 1 recomputed, so
                         // the frame is judged exactly as in an uninterrupted run.
                         _ => self.previous_tracking(frame, width, height),
@@ -412,7 +415,10 @@ mod tests {
             skip: vec![1, 2, 3],
             render: vec![
                 (4, RenderReason::HashDiffers),
-                (5, RenderReason::Unreadable("OpenEXR decoding: truncated".into())),
+                (
+                    5,
+                    RenderReason::Unreadable("OpenEXR decoding: truncated".into()),
+                ),
                 (6, RenderReason::Missing),
                 (7, RenderReason::Missing),
                 (8, RenderReason::ReportRowStale),
@@ -439,7 +445,10 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let hash = InputHash([7; 32]);
         let path = dir.path().join("pool.0001.exr");
-        assert_eq!(check_frame_file(&path, 1, &hash), Err(RenderReason::Missing));
+        assert_eq!(
+            check_frame_file(&path, 1, &hash),
+            Err(RenderReason::Missing)
+        );
         std::fs::write(&path, b"not an exr").unwrap();
         assert!(matches!(
             check_frame_file(&path, 1, &hash),

@@ -218,6 +218,10 @@ mod tests {
         );
         let temp = tempfile::tempdir().unwrap();
         check_writable(temp.path()).unwrap();
-        assert_eq!(fs::read_dir(temp.path()).unwrap().count(), 0, "probe removed");
+        assert_eq!(
+            fs::read_dir(temp.path()).unwrap().count(),
+            0,
+            "probe removed"
+        );
     }
 }
