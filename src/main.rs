@@ -194,18 +194,27 @@ fn render(
         // Every file is closed and renamed into place: nothing is lost by exiting here.
         std::process::exit(snell::interrupt::exit_code().unwrap_or(130).into());
     }
-    eprintln!(
-        "rendered {} frame(s) of {} at {width}x{height} into {} ({:.2} s per frame){}",
-        outcome.rendered.len(),
-        job.scene_name(),
-        out_dir.display(),
-        outcome.secs_per_frame,
-        if outcome.skipped.is_empty() {
-            String::new()
-        } else {
-            format!("; kept {} complete frame(s)", outcome.skipped.len())
-        }
-    );
+    if outcome.rendered.is_empty() {
+        eprintln!(
+            "nothing to render: the {} frame(s) of {} at {width}x{height} in {} are complete",
+            outcome.skipped.len(),
+            job.scene_name(),
+            out_dir.display()
+        );
+    } else {
+        eprintln!(
+            "rendered {} frame(s) of {} at {width}x{height} into {} ({:.2} s per frame){}",
+            outcome.rendered.len(),
+            job.scene_name(),
+            out_dir.display(),
+            outcome.secs_per_frame,
+            if outcome.skipped.is_empty() {
+                String::new()
+            } else {
+                format!("; kept {} complete frame(s)", outcome.skipped.len())
+            }
+        );
+    }
     Ok(())
 }
 

@@ -287,6 +287,10 @@ fn resume_keeps_current_frames_and_renders_the_others() {
         text.contains("resume: 3 of 3 frame(s) complete from the same inputs, skipped (1-3); nothing to render"),
         "{text}"
     );
+    assert!(
+        text.contains("nothing to render: the 3 frame(s) of tiny at 160x90 in"),
+        "{text}"
+    );
     assert_eq!(
         (1..=3).map(|f| modified(&path(f))).collect::<Vec<_>>(),
         times
@@ -432,16 +436,8 @@ fn a_write_failing_mid_render_is_exit_1() {
     let out = temp.path().join("tiny");
     std::fs::create_dir_all(&out).unwrap();
     let args = render_args(&scene("tiny.toml"), &out, "1-3", SIZE);
-    // Ignored signals stay ignored across exec: without SIGXFSZ the write returns EFBIG. 100 KiB:
-    // the report and the probe fit, a 160x90 frame (about 230 KB) does not.
-    let output = Command::new("bash")
-        .arg("-c")
-        .arg("trap '' XFSZ; ulimit -f 100; exec \"$@\"")
-        .arg("bash")
-        .arg(env!("CARGO_BIN_EXE_snell"))
-        .args(&args)
-        .output()
-        .unwrap();
+    // 100 KiB: the probe fits, a 160x90 frame (about 230 KB) does not.
+    let output = with_file_size_limit_kib(100, &args);
     let text = stderr(&output);
     assert_eq!(output.status.code(), Some(1), "{text}");
     assert!(
@@ -454,4 +450,31 @@ fn a_write_failing_mid_render_is_exit_1() {
     assert!(!text.contains("panicked"), "{text}");
     assert_eq!(temporary_files(&out), Vec::<PathBuf>::new());
     assert_eq!(frame_files(&out), Vec::new());
+
+    // The simulation checkpoints (fox_wading's ripple grid, 257x129 nodes: about 265 KB each)
+    // go through the same writes: the first one fails before any frame.
+    let out = temp.path().join("fox");
+    let args = render_args(&scene("fox_wading.toml"), &out, "1", SIZE);
+    let output = with_file_size_limit_kib(100, &args);
+    let text = stderr(&output);
+    assert_eq!(output.status.code(), Some(1), "{text}");
+    assert!(
+        text.contains("error: cannot write the simulation checkpoint ")
+            && text.contains("ripples-000001.bin: File too large"),
+        "{text}"
+    );
+    assert_eq!(temporary_files(&out), Vec::<PathBuf>::new());
+}
+
+/// Runs snell with `args` under a file size limit, SIGXFSZ ignored (ignored signals stay ignored
+/// across exec), so a write past the limit fails with EFBIG.
+fn with_file_size_limit_kib(limit_kib: u32, args: &[String]) -> Output {
+    Command::new("bash")
+        .arg("-c")
+        .arg(format!("trap '' XFSZ; ulimit -f {limit_kib}; exec \"$@\""))
+        .arg("bash")
+        .arg(env!("CARGO_BIN_EXE_snell"))
+        .args(args)
+        .output()
+        .unwrap()
 }

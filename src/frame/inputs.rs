@@ -106,7 +106,7 @@ mod tests {
             .unwrap();
         let scene_file = dir.path().join("scene.toml");
         let text = "[[object]]\nshape = \"sphere\"\nradius_m = 0.2\ntranslate = [0.0, -0.5, 0.0]\n\
-                    texture = { image = \"tile.png\", size_m = 0.5 }\n";
+                    texture = { image = \"tile.png\", size_m = [0.5, 0.5] }\n";
         std::fs::write(&scene_file, text).unwrap();
         let files = digest_of(&scene_file);
         assert_eq!(digest_of(&scene_file), files, "same inputs, same digest");
