@@ -363,6 +363,26 @@ fn ctrl_c_stops_after_the_frame_in_flight() {
     );
 }
 
+/// SIGTERM (what service managers and `kill` send) stops the same way, with 128 + 15.
+#[test]
+fn sigterm_stops_after_the_frame_in_flight_with_143() {
+    let temp = tempfile::tempdir().unwrap();
+    let out = temp.path().join("pool");
+    let mut child = spawn(&render_args(&scene("pool.toml"), &out, "1-16", SIZE));
+    wait_for_first_frame(&mut child, &out);
+    send_signal(&child, libc::SIGTERM);
+    let output = child.wait_with_output().unwrap();
+    let text = stderr(&output);
+    assert_eq!(output.status.code(), Some(143), "{text}");
+    assert!(
+        text.contains("SIGTERM received: stopping after the frame in flight"),
+        "{text}"
+    );
+    assert!(frame_files(&out).len() < 16, "{text}");
+    assert_all_complete(&out);
+    assert_eq!(temporary_files(&out), Vec::<PathBuf>::new());
+}
+
 /// A second Ctrl-C exits at once (still 130), removing this process's temporary files; the frames
 /// already written are complete.
 #[test]
