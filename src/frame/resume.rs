@@ -305,8 +305,10 @@ impl RenderJob {
             let mut renderer = Renderer::new()?;
             self.upload_textures(&mut renderer)?;
             let bar = super::progress_bar(to_render.len() as u64, progress);
-            // As in an uninterrupted run, frames are encoded and written on a second thread while
-            // the next one is rendered; the channel holds one frame.
+            // Frames are encoded and written on a second thread while the next one is refracted
+            // and rendered (EXR compression costs about as much as the rest of a frame). The
+            // channel holds one frame, so memory stays bounded; the report row of a frame is
+            // appended only after its EXR is safely renamed into place.
             let (sender, receiver) = std::sync::mpsc::sync_channel::<FrameToWrite>(1);
             let written = std::thread::scope(|scope| {
                 let writer = scope.spawn(move || super::write_frames(receiver, report, write_png));
