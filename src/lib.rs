@@ -15,7 +15,7 @@
 //! Z/P tolerances, exact flag counts, JUnit.
 //!
 //! [`frame`] ties the stages together: one `render_frame` entry point used identically by the CLI
-//! and by the tests.
+//! and by the tests. [`interrupt`] turns Ctrl-C into a stop after the frame in flight.
 
 pub mod camera;
 pub mod character;
@@ -24,6 +24,7 @@ pub mod color;
 pub mod draw;
 pub mod frame;
 pub mod gpu;
+pub mod interrupt;
 pub mod mesh;
 pub mod output;
 pub mod preview;

@@ -32,6 +32,12 @@ enum Command {
     /// Frames land in DIR/<scene>.<frame>.exr (4-digit frame numbers); DIR/report.jsonl gets one JSON
     /// line per frame with flag counts and seconds per stage. Each frame is written under a temporary
     /// name and renamed, so an interrupted render never leaves a truncated frame.
+    ///
+    /// Ctrl-C (or SIGTERM) stops after the frame in flight is written, prints the frames done and
+    /// the command that finishes the render, and exits with 130 (143 for SIGTERM); a second Ctrl-C
+    /// stops at once. Temporary files a killed render left behind are removed by the next render
+    /// into the same directory. Exit codes: 0 done, 2 bad scene, arguments or output directory,
+    /// 1 other failures (e.g. a full disk mid-render).
     Render {
         /// The scene file (TOML), e.g. scenes/pool.toml.
         scene: PathBuf,
@@ -51,6 +57,13 @@ enum Command {
         /// overlaps, the default) or thesis-plane (the thesis's plane-test cells, for comparison).
         #[arg(long, default_value = "equal-t", value_name = "METHOD")]
         method: String,
+        /// Keep frames already complete from the same inputs and render only the rest. A frame is
+        /// kept when its EXR reads back whole and its header's input hash (of the scene file,
+        /// every file it references, the size and the method) and its report row match this
+        /// render's; the command says how many it kept and why it renders the others (missing,
+        /// unreadable, made from other inputs).
+        #[arg(long)]
+        resume: bool,
     },
     /// Scrub a scene's timeline in the browser: a local web page with the frame, a timeline
     /// slider, play/pause, exposure, method, flag overlays and a strip of per-frame flag counts.
@@ -134,7 +147,8 @@ fn main() -> ExitCode {
             size,
             png,
             method,
-        } => render(&scene, frames.as_deref(), out, &size, png, &method),
+            resume,
+        } => render(&scene, frames.as_deref(), out, &size, png, &method, resume),
         Command::Preview {
             scene,
             port,
@@ -189,6 +203,7 @@ fn render(
     size: &str,
     png: bool,
     method: &str,
+    resume: bool,
 ) -> Result<(), SnellError> {
     let (width, height) = frame::parse_size(size)?;
     let method =
@@ -200,14 +215,60 @@ fn render(
         None => FrameRange::whole(job.timeline()),
     };
     let out_dir = out.unwrap_or_else(|| PathBuf::from("output").join(job.scene_name()));
-    let summary = job.render_to_dir(range, width, height, &out_dir, png, true)?;
-    eprintln!(
-        "rendered {} frame(s) of {} at {width}x{height} into {} ({:.2} s per frame)",
-        summary.frames,
-        job.scene_name(),
-        out_dir.display(),
-        summary.secs_per_frame
-    );
+    let resume_command =
+        resume_command_line(scene_path, frames, &out_dir, width, height, png, method);
+    let stop = match snell::interrupt::install(resume_command.clone()) {
+        Ok(flag) => Some(flag),
+        Err(error) => {
+            eprintln!("warning: cannot handle Ctrl-C ({error}): it will stop the render at once");
+            None
+        }
+    };
+    let outcome = job.render_sequence(&frame::resume::SequenceOptions {
+        range,
+        width,
+        height,
+        out_dir: &out_dir,
+        write_png: png,
+        progress: true,
+        resume,
+        stop,
+    })?;
+    if outcome.interrupted {
+        let done = outcome.done();
+        eprintln!(
+            "interrupted: {} of {} frame(s) done in {} ({}); not rendered: {}",
+            done.len(),
+            range.len(),
+            out_dir.display(),
+            frame::resume::frame_list(&done),
+            frame::resume::frame_list(&outcome.remaining)
+        );
+        eprintln!("to finish: {resume_command}");
+        // Every file is closed and renamed into place: nothing is lost by exiting here.
+        std::process::exit(snell::interrupt::exit_code().unwrap_or(130).into());
+    }
+    if outcome.rendered.is_empty() {
+        eprintln!(
+            "nothing to render: the {} frame(s) of {} at {width}x{height} in {} are complete",
+            outcome.skipped.len(),
+            job.scene_name(),
+            out_dir.display()
+        );
+    } else {
+        eprintln!(
+            "rendered {} frame(s) of {} at {width}x{height} into {} ({:.2} s per frame){}",
+            outcome.rendered.len(),
+            job.scene_name(),
+            out_dir.display(),
+            outcome.secs_per_frame,
+            if outcome.skipped.is_empty() {
+                String::new()
+            } else {
+                format!("; kept {} complete frame(s)", outcome.skipped.len())
+            }
+        );
+    }
     Ok(())
 }
 
@@ -238,6 +299,54 @@ fn preview(
     );
     server.wait();
     Ok(())
+}
+
+/// The `snell render ... --resume` command line that finishes this render, quoted for a POSIX
+/// shell.
+fn resume_command_line(
+    scene_path: &Path,
+    frames: Option<&str>,
+    out_dir: &Path,
+    width: u32,
+    height: u32,
+    png: bool,
+    method: Method,
+) -> String {
+    let program = std::env::args().next().unwrap_or_else(|| "snell".into());
+    let mut words = vec![program, "render".into(), scene_path.display().to_string()];
+    if let Some(frames) = frames {
+        words.extend(["--frames".into(), frames.to_string()]);
+    }
+    words.extend([
+        "--out".into(),
+        out_dir.display().to_string(),
+        "--size".into(),
+        format!("{width}x{height}"),
+    ]);
+    if png {
+        words.push("--png".into());
+    }
+    if method != Method::default() {
+        words.extend(["--method".into(), method.name().to_string()]);
+    }
+    words.push("--resume".into());
+    words
+        .iter()
+        .map(|word| shell_quoted(word))
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+fn shell_quoted(word: &str) -> String {
+    let plain = !word.is_empty()
+        && word
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || "-_./:=,+@%".contains(c));
+    if plain {
+        word.to_string()
+    } else {
+        format!("'{}'", word.replace('\'', "'\\''"))
+    }
 }
 
 fn info(scene_path: &Path) -> Result<(), SnellError> {

@@ -3,11 +3,12 @@
 //! `world_from_character`), their primitives turned into world-space [`Object`]s, and the ripple
 //! [`Simulation`] driven by their occupancy of the water, keyed for checkpoints.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::sync::Arc;
 
 use glam::{Mat4, Vec3};
 
+use super::inputs::SceneFilesDigest;
 use super::SnellError;
 use crate::character::{AnimationSelector, CharacterAsset};
 use crate::mesh::{Material, Object, Texture};
@@ -170,33 +171,15 @@ pub fn ripple_settings(scene: &Scene) -> RippleSettings {
     }
 }
 
-/// The simulation's key: the scene file's bytes, every file it references (characters and their
-/// buffers and images, image textures), the simulation settings and code version.
+/// The simulation's key: the digest of the scene file and every file it references (see
+/// [`super::inputs::digest_scene_files`]), the simulation settings and code version.
 pub fn simulation_key(
     scene: &Scene,
-    characters: &[Character],
+    scene_files: &SceneFilesDigest,
     settings: &RippleSettings,
-) -> Result<CheckpointKey, SnellError> {
+) -> CheckpointKey {
     let mut hasher = KeyHasher::new(SIMULATION_VERSION);
-    let read = |path: &Path| {
-        std::fs::read(path).map_err(|source| {
-            SnellError::Scene(crate::scene::SceneError::Read {
-                path: path.to_path_buf(),
-                source,
-            })
-        })
-    };
-    hasher.input("scene", &read(&scene.path)?);
-    let mut files: Vec<PathBuf> = characters
-        .iter()
-        .flat_map(|c| c.asset.files().iter().cloned())
-        .chain(scene.image_files())
-        .collect();
-    files.sort();
-    files.dedup();
-    for file in &files {
-        hasher.input(&file.to_string_lossy(), &read(file)?);
-    }
+    hasher.input("scene-files", &scene_files.0);
     hasher.input(
         "settings",
         serde_json::to_string(settings)
@@ -207,7 +190,7 @@ pub fn simulation_key(
         "timeline",
         format!("{} {}", scene.timeline.fps, scene.timeline.first_frame).as_bytes(),
     );
-    Ok(hasher.finish())
+    hasher.finish()
 }
 
 /// Characters and ripples of a job.
@@ -219,13 +202,16 @@ pub struct Dynamics {
 }
 
 impl Dynamics {
-    /// The simulation's key (which reads the scene and every file it references) is made only
-    /// when ripples are on.
-    pub fn new(scene: &Scene, characters: Vec<Character>) -> Result<Self, SnellError> {
+    /// `scene_files` is the digest of the scene's files, which keys the simulation's checkpoints.
+    pub fn new(
+        scene: &Scene,
+        characters: Vec<Character>,
+        scene_files: &SceneFilesDigest,
+    ) -> Result<Self, SnellError> {
         let ripples = &scene.water.ripples;
         let simulation = if ripples.enabled {
             let settings = ripple_settings(scene);
-            let key = simulation_key(scene, &characters, &settings)?;
+            let key = simulation_key(scene, scene_files, &settings);
             Some(Simulation::new(
                 settings,
                 ripples.strength,
@@ -324,7 +310,8 @@ mod tests {
         let scene = Scene::load(scene_file).unwrap();
         let mut textures = Vec::new();
         let characters = load_characters(&scene, &mut textures).unwrap();
-        simulation_key(&scene, &characters, &ripple_settings(&scene)).unwrap()
+        let files = super::super::inputs::digest_scene_files(&scene, &characters).unwrap();
+        simulation_key(&scene, &files, &ripple_settings(&scene))
     }
 
     /// Stale checkpoints are never used: editing the scene file or any byte of an asset it

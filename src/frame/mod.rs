@@ -5,6 +5,8 @@
 
 pub mod bench;
 pub mod characters;
+pub mod inputs;
+pub mod resume;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -54,10 +56,8 @@ impl SnellError {
     /// Whether the user's input (scene, arguments, output location) is at fault: exit code 2.
     pub fn is_bad_input(&self) -> bool {
         match self {
-            SnellError::Scene(_)
-            | SnellError::Argument(_)
-            | SnellError::Frame { .. }
-            | SnellError::Checkpoint(_) => true,
+            SnellError::Scene(_) | SnellError::Argument(_) | SnellError::Frame { .. } => true,
+            SnellError::Checkpoint(error) => error.is_bad_input(),
             SnellError::Output(error) => error.is_bad_input(),
             SnellError::Gpu(_) => false,
         }
@@ -129,6 +129,8 @@ pub struct RefractedFrame {
     pub draw: FrameDraw,
     pub view: FrameView,
     pub counts: FlagCounts,
+    /// Width and height in pixels the frame is refracted for.
+    pub image_size: (u32, u32),
     /// Chosen images per vertex, for the next frame's popping test.
     pub tracking: VertexTracking,
     pub stage_secs: BTreeMap<String, f64>,
@@ -209,6 +211,9 @@ pub struct RenderJob {
     /// Heights the refraction search must cover for the static objects (characters and ripples
     /// widen it per frame).
     query_y_range: (f32, f32),
+    /// The scene file and every file it references, hashed once at load (frames' input hash,
+    /// simulation checkpoint key).
+    scene_files: inputs::SceneFilesDigest,
 }
 
 /// What a finished render reports to the CLI.
@@ -227,7 +232,8 @@ impl RenderJob {
     pub fn from_scene(scene: Scene) -> Result<Self, SnellError> {
         let (objects, mut textures) = scene.build_objects()?;
         let loaded = characters::load_characters(&scene, &mut textures)?;
-        let dynamics = characters::Dynamics::new(&scene, loaded)?;
+        let scene_files = inputs::digest_scene_files(&scene, &loaded)?;
+        let dynamics = characters::Dynamics::new(&scene, loaded, &scene_files)?;
         let waves = WaveField {
             level_m: scene.water.level_m,
             waves: scene.water.waves.iter().map(wave_from_spec).collect(),
@@ -248,7 +254,19 @@ impl RenderJob {
             dynamics,
             method: Method::default(),
             query_y_range: (bottom, top),
+            scene_files,
         })
+    }
+
+    /// The rendering method, as EXR headers and report rows name it.
+    pub fn method_label(&self) -> &'static str {
+        self.method.label()
+    }
+
+    /// The hash of everything a frame of this job at `width` x `height` is made from: the scene's
+    /// files as loaded, the size, [`Self::method_label`] and snell's version.
+    pub fn input_hash(&self, width: u32, height: u32) -> inputs::InputHash {
+        inputs::input_hash(&self.scene_files, width, height, self.method_label())
     }
 
     /// Reads and writes simulation checkpoints under `out_dir` from now on (a note when stale
@@ -387,6 +405,7 @@ impl RenderJob {
             draw,
             view,
             counts: geometry.counts,
+            image_size: (width, height),
             tracking: geometry.tracking,
             stage_secs,
         })
@@ -443,7 +462,8 @@ impl RenderJob {
         Ok((refracted, rendered))
     }
 
-    /// Renders `range` into `out_dir` (EXR per frame, report.jsonl, optional PNGs), with a progress bar.
+    /// Renders `range` into `out_dir` (EXR per frame, report.jsonl, optional PNGs), with a progress
+    /// bar: every frame, no resume, no stop request (see [`resume::SequenceOptions`] for those).
     pub fn render_to_dir(
         &self,
         range: FrameRange,
@@ -453,71 +473,19 @@ impl RenderJob {
         write_png: bool,
         progress: bool,
     ) -> Result<RenderSummary, SnellError> {
-        crate::output::ensure_output_dir(out_dir)?;
-        if let Some(note) = self.use_checkpoints(out_dir)? {
-            eprintln!("note: {note}");
-        }
-        let mut renderer = Renderer::new()?;
-        self.upload_textures(&mut renderer)?;
-        let report = crate::output::report::ReportWriter::create(out_dir)?;
-        let bar = progress_bar(range.len() as u64, progress);
-        let started = Instant::now();
-        let mut previous = self.previous_tracking(range.first, width, height)?;
-        // Frames are encoded and written on a second thread while the next one is refracted and
-        // rendered (EXR compression costs about as much as the rest of a frame). The channel holds
-        // one frame, so memory stays bounded; the report row of a frame is appended only after its
-        // EXR is safely renamed into place.
-        let (sender, receiver) = std::sync::mpsc::sync_channel::<FrameToWrite>(1);
-        let written = std::thread::scope(|scope| {
-            let writer = scope.spawn(move || write_frames(receiver, report, write_png));
-            let mut render_error = None;
-            for frame in range.frames() {
-                bar.set_message(format!("frame {frame}"));
-                let result = self
-                    .refract(frame, width, height, previous.as_ref())
-                    .and_then(|mut refracted| {
-                        let rendered =
-                            self.render_refracted(&mut renderer, &mut refracted, width, height)?;
-                        Ok((refracted, rendered))
-                    });
-                let (refracted, rendered) = match result {
-                    Ok(done) => done,
-                    Err(error) => {
-                        render_error = Some(error);
-                        break;
-                    }
-                };
-                let job = FrameToWrite {
-                    path: crate::output::exr::frame_path(
-                        out_dir,
-                        &self.scene.name,
-                        refracted.frame,
-                    ),
-                    meta: self.frame_meta(&refracted),
-                    report: self.frame_report(&refracted, width, height),
-                    rendered,
-                };
-                previous = Some(refracted.tracking);
-                if sender.send(job).is_err() {
-                    break; // the writer stopped on an error: it is returned below
-                }
-                bar.inc(1);
-            }
-            drop(sender);
-            let written = writer
-                .join()
-                .expect("the frame writer thread does not panic");
-            match render_error {
-                Some(error) => Err(error),
-                None => written,
-            }
-        });
-        bar.finish_and_clear();
-        written?;
-        let secs = started.elapsed().as_secs_f64();
+        let outcome = self.render_sequence(&resume::SequenceOptions {
+            range,
+            width,
+            height,
+            out_dir,
+            write_png,
+            progress,
+            resume: false,
+            stop: None,
+        })?;
         Ok(RenderSummary {
-            frames: range.len(),
-            secs_per_frame: secs / range.len() as f64,
+            frames: outcome.rendered.len() as u32,
+            secs_per_frame: outcome.secs_per_frame,
         })
     }
 
@@ -527,7 +495,7 @@ impl RenderJob {
             frame: refracted.frame,
             time_secs: refracted.time_secs,
             camera: refracted.camera,
-            method: self.method.label().to_string(),
+            method: self.method_label().to_string(),
             version: crate::VERSION.to_string(),
             extra: vec![
                 (
@@ -539,6 +507,11 @@ impl RenderJob {
                 (
                     "flagCounts".to_string(),
                     serde_json::to_string(&refracted.counts).expect("flag counts serialise"),
+                ),
+                (
+                    inputs::INPUT_HASH_ATTRIBUTE.to_string(),
+                    self.input_hash(refracted.image_size.0, refracted.image_size.1)
+                        .hex(),
                 ),
             ],
         }
@@ -557,7 +530,8 @@ impl RenderJob {
             counts: serde_json::to_value(refracted.counts).expect("flag counts serialise"),
             stage_secs: refracted.stage_secs.clone(),
             size: [width, height],
-            method: self.method.label().to_string(),
+            method: self.method_label().to_string(),
+            input_hash: Some(self.input_hash(width, height).hex()),
         }
     }
 

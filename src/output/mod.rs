@@ -7,6 +7,7 @@
 pub mod compare;
 pub mod exr;
 pub mod report;
+pub mod temporary;
 pub mod tonemap;
 
 use std::fs::{self, File};
@@ -23,6 +24,9 @@ pub use tonemap::{save_png_atomic, tonemap_srgb8};
 pub enum OutputError {
     #[error("cannot create directory {dir}: {cause}")]
     CreateDir { dir: PathBuf, cause: String },
+    /// The output directory exists but files cannot be created in it.
+    #[error("cannot write into directory {dir}: {cause}")]
+    NotWritable { dir: PathBuf, cause: String },
     #[error("cannot write {path}: {cause}")]
     Write { path: PathBuf, cause: String },
     #[error("cannot read {path}: {cause}")]
@@ -37,12 +41,14 @@ pub enum OutputError {
 
 impl OutputError {
     /// Whether the user's choice of output location is at fault (the CLI exits with 2): a directory
-    /// that cannot be created, or an existing report that is not snell's. Failures while writing
-    /// (a full disk, an I/O error) are not.
+    /// that cannot be created or written into, or an existing report that is not snell's. Failures
+    /// while writing (a full disk, an I/O error) are not.
     pub fn is_bad_input(&self) -> bool {
         matches!(
             self,
-            OutputError::CreateDir { .. } | OutputError::Parse { .. }
+            OutputError::CreateDir { .. }
+                | OutputError::NotWritable { .. }
+                | OutputError::Parse { .. }
         )
     }
 }
@@ -66,14 +72,23 @@ pub fn ensure_output_dir(dir: &Path) -> Result<(), OutputError> {
     })
 }
 
-/// The temporary name a file is written under before the rename: hidden, in the same directory
-/// (so the rename cannot cross file systems), unique per process.
-fn temporary_path_for(path: &Path) -> PathBuf {
-    let file_name = path
-        .file_name()
-        .map(|name| name.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    path.with_file_name(format!(".{file_name}.tmp-{}", std::process::id()))
+/// Checks that files can be created in `dir` (which exists) before any work is done, by creating
+/// and removing a temporary file there: a read-only or pseudo file system fails here with exit 2
+/// instead of after the first frame.
+pub fn check_writable(dir: &Path) -> Result<(), OutputError> {
+    let probe = temporary::temporary_path_for(&dir.join("write-check"));
+    match temporary::create(&probe) {
+        Ok(file) => {
+            drop(file);
+            let _ = fs::remove_file(&probe);
+            temporary::release(&probe);
+            Ok(())
+        }
+        Err(error) => Err(OutputError::NotWritable {
+            dir: dir.to_path_buf(),
+            cause: error.to_string(),
+        }),
+    }
 }
 
 /// Writes `path` atomically: creates the parent directory, lets `write_contents` fill a temporary
@@ -86,13 +101,13 @@ pub(crate) fn write_atomically(
     if let Some(parent) = path.parent() {
         ensure_output_dir(parent)?;
     }
-    let temporary_path = temporary_path_for(path);
+    let temporary_path = temporary::temporary_path_for(path);
     let write_error = |cause: String| OutputError::Write {
         path: path.to_path_buf(),
         cause,
     };
     let result = (|| {
-        let mut file = File::create(&temporary_path).map_err(|error| error.to_string())?;
+        let mut file = temporary::create(&temporary_path).map_err(|error| error.to_string())?;
         write_contents(&mut file)?;
         file.sync_all()
             .map_err(|error| format!("sync failed: {error}"))?;
@@ -103,8 +118,10 @@ pub(crate) fn write_atomically(
     if let Err(cause) = result {
         // The temporary file may not exist (creation failed); either way it must not stay behind.
         let _ = fs::remove_file(&temporary_path);
+        temporary::release(&temporary_path);
         return Err(write_error(cause));
     }
+    temporary::release(&temporary_path);
     sync_parent_dir(path);
     Ok(())
 }
@@ -157,5 +174,54 @@ mod tests {
             .map(|entry| entry.unwrap().file_name())
             .collect();
         assert_eq!(leftovers, vec![std::ffi::OsString::from("out.bin")]);
+    }
+
+    /// A full disk mid-write: the error names the file and the cause, is not blamed on the user
+    /// (exit 1, not 2), the destination keeps its old contents and no temporary file stays.
+    #[test]
+    fn full_disk_is_a_clear_error_and_leaves_nothing_behind() {
+        let temp = tempfile::tempdir().unwrap();
+        let path = temp.path().join("pool.0001.exr");
+        fs::write(&path, b"old frame").unwrap();
+        let error = write_atomically(&path, |file| {
+            use std::io::Write;
+            file.write_all(b"half a frame").map_err(|e| e.to_string())?;
+            Err(std::io::Error::from_raw_os_error(libc::ENOSPC).to_string())
+        })
+        .unwrap_err();
+        let message = error.to_string();
+        assert!(
+            message.starts_with(&format!("cannot write {}: ", path.display())),
+            "{message}"
+        );
+        assert!(message.contains("No space left on device"), "{message}");
+        assert!(!error.is_bad_input());
+        assert_eq!(fs::read(&path).unwrap(), b"old frame");
+        let names: Vec<_> = fs::read_dir(temp.path())
+            .unwrap()
+            .map(|entry| entry.unwrap().file_name())
+            .collect();
+        assert_eq!(names, vec![std::ffi::OsString::from("pool.0001.exr")]);
+    }
+
+    /// /proc refuses new files even for root (permission bits would not stop root).
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn a_directory_that_refuses_files_is_bad_input() {
+        let proc_dir = Path::new("/proc");
+        let error = check_writable(proc_dir).unwrap_err();
+        assert!(error.is_bad_input());
+        let message = error.to_string();
+        assert!(
+            message.starts_with("cannot write into directory /proc: "),
+            "{message}"
+        );
+        let temp = tempfile::tempdir().unwrap();
+        check_writable(temp.path()).unwrap();
+        assert_eq!(
+            fs::read_dir(temp.path()).unwrap().count(),
+            0,
+            "probe removed"
+        );
     }
 }

@@ -29,6 +29,10 @@ pub struct FrameReport {
     /// Width and height in pixels.
     pub size: [u32; 2],
     pub method: String,
+    /// The frame's input hash (as in its EXR header), so `snell render --resume` can tell a row
+    /// of this render from a row of an earlier one with other inputs. Absent in older reports.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub input_hash: Option<String>,
 }
 
 /// Keeps `DIR/report.jsonl` up to date frame by frame.
@@ -63,6 +67,13 @@ impl ReportWriter {
 
     pub fn path(&self) -> &Path {
         &self.path
+    }
+
+    /// The `input_hash` of `frame`'s row: None when there is no row or it has no hash.
+    pub fn row_input_hash(&self, frame: u32) -> Option<String> {
+        let row = self.rows_by_frame.get(&frame)?;
+        let value: serde_json::Value = serde_json::from_str(row).ok()?;
+        value.get("input_hash")?.as_str().map(str::to_string)
     }
 
     /// Adds (or replaces) the row of `report.frame` and rewrites the file, flushed and synced.
@@ -140,6 +151,7 @@ mod tests {
             stage_secs: BTreeMap::from([("refraction".into(), 0.012), ("render".into(), 0.034)]),
             size: [320, 180],
             method: method.into(),
+            input_hash: None,
         }
     }
 
@@ -215,6 +227,21 @@ mod tests {
         assert_eq!(method(&lines[2]), "raytrace");
         assert_eq!(method(&lines[3]), "geometric");
         assert_eq!(lines[5], "{\"frame\":9,\"future_field\":true}");
+    }
+
+    #[test]
+    fn the_input_hash_of_a_row_is_read_back() {
+        let temp = tempfile::tempdir().unwrap();
+        let mut writer = ReportWriter::create(temp.path()).unwrap();
+        writer.append(&report(1, "geometric")).unwrap();
+        let mut hashed = report(2, "geometric");
+        hashed.input_hash = Some("ab12".into());
+        writer.append(&hashed).unwrap();
+        drop(writer);
+        let reopened = ReportWriter::create(temp.path()).unwrap();
+        assert_eq!(reopened.row_input_hash(1), None, "a row without a hash");
+        assert_eq!(reopened.row_input_hash(2).as_deref(), Some("ab12"));
+        assert_eq!(reopened.row_input_hash(3), None, "no row");
     }
 
     #[test]

@@ -68,6 +68,14 @@ pub enum CheckpointError {
     },
 }
 
+impl CheckpointError {
+    /// Whether the output location is at fault (a folder that cannot be made: exit 2) rather
+    /// than a write failing mid-render (a full disk: exit 1).
+    pub fn is_bad_input(&self) -> bool {
+        matches!(self, CheckpointError::CreateDir { .. })
+    }
+}
+
 /// One scene's checkpoint folder.
 #[derive(Debug)]
 pub struct CheckpointStore {
@@ -157,18 +165,22 @@ impl CheckpointStore {
     /// Writes the checkpoint of `frame` atomically (temporary file, then rename).
     pub fn save(&self, frame: u32, state: &RippleState) -> Result<(), CheckpointError> {
         let path = self.path_of(frame);
-        let temporary = self.dir.join(format!(".ripples-{frame:06}.bin.partial"));
+        // Named and registered like every output's temporary file, so an immediate stop removes
+        // it and the next render removes it when a killed process left it.
+        let temporary = crate::output::temporary::temporary_path_for(&path);
         let bytes = encode(self.key, frame, state);
         let write = || -> std::io::Result<()> {
-            let mut file = fs::File::create(&temporary)?;
+            let mut file = crate::output::temporary::create(&temporary)?;
             file.write_all(&bytes)?;
             file.sync_data()?;
             fs::rename(&temporary, &path)
         };
-        write().map_err(|source| {
+        let result = write().map_err(|source| {
             let _ = fs::remove_file(&temporary);
             CheckpointError::Write { path, source }
-        })
+        });
+        crate::output::temporary::release(&temporary);
+        result
     }
 }
 

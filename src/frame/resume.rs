@@ -1,0 +1,460 @@
+//! Rendering a range of frames into a directory so that the work survives failure. Receives a
+//! [`RenderJob`] and [`SequenceOptions`]; writes EXR frames, PNGs and report rows (each renamed
+//! into place whole) and returns what it rendered, what it skipped and why.
+//!
+//! With `resume`, a frame is skipped when its EXR reads back whole, its header's
+//! `snell.extra.inputHash` equals the job's and its report row carries the same hash; every other
+//! frame is rendered, with popping judged against frame - 1 exactly as in an uninterrupted run.
+//! A stop request (Ctrl-C) ends the sequence once the frame in flight is written.
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Instant;
+
+use rayon::prelude::*;
+
+use super::inputs::{InputHash, INPUT_HASH_ATTRIBUTE};
+use super::{FrameRange, FrameToWrite, RenderJob, SnellError, VertexTracking};
+use crate::draw::RenderedFrame;
+use crate::gpu::Renderer;
+use crate::output::report::ReportWriter;
+
+/// What [`RenderJob::render_sequence`] renders, where, and how it may be cut short.
+pub struct SequenceOptions<'a> {
+    pub range: FrameRange,
+    pub width: u32,
+    pub height: u32,
+    pub out_dir: &'a Path,
+    /// Also write a tone-mapped PNG next to each EXR.
+    pub write_png: bool,
+    /// Show a progress bar.
+    pub progress: bool,
+    /// Skip frames already complete from the same inputs.
+    pub resume: bool,
+    /// When set (by a signal handler), no new frame is started; the frame in flight is finished
+    /// and written.
+    pub stop: Option<&'a AtomicBool>,
+}
+
+/// Why a frame is rendered when resuming.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum RenderReason {
+    /// No EXR for the frame.
+    Missing,
+    /// The EXR cannot be read back whole (truncated, corrupted, not OpenEXR); the cause.
+    Unreadable(String),
+    /// The EXR was made from other inputs (scene, an asset, size, method or snell version), or
+    /// carries no input hash.
+    HashDiffers,
+    /// The EXR is current but the report has no row from the same inputs for it (a process
+    /// killed between writing the frame and its row).
+    ReportRowStale,
+}
+
+/// Which frames a resumed render skips and which it renders, with the reason for each.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct ResumePlan {
+    pub skip: Vec<u32>,
+    pub render: Vec<(u32, RenderReason)>,
+}
+
+impl ResumePlan {
+    /// One paragraph for the user: how many frames are skipped and why the others are rendered.
+    pub fn summary(&self) -> String {
+        let total = self.skip.len() + self.render.len();
+        let mut text = format!(
+            "resume: {} of {total} frame(s) complete from the same inputs, skipped",
+            self.skip.len()
+        );
+        if !self.skip.is_empty() {
+            text.push_str(&format!(" ({})", frame_list(&self.skip)));
+        }
+        if self.render.is_empty() {
+            text.push_str("; nothing to render");
+            return text;
+        }
+        text.push_str(&format!("; rendering {}:", self.render.len()));
+        let with = |wanted: fn(&RenderReason) -> bool| -> Vec<u32> {
+            self.render
+                .iter()
+                .filter(|(_, reason)| wanted(reason))
+                .map(|(frame, _)| *frame)
+                .collect()
+        };
+        let mut groups = Vec::new();
+        let missing = with(|r| *r == RenderReason::Missing);
+        if !missing.is_empty() {
+            groups.push(format!(
+                "{} missing ({})",
+                missing.len(),
+                frame_list(&missing)
+            ));
+        }
+        let differs = with(|r| *r == RenderReason::HashDiffers);
+        if !differs.is_empty() {
+            groups.push(format!(
+                "{} made from other inputs, hash differs ({})",
+                differs.len(),
+                frame_list(&differs)
+            ));
+        }
+        let stale = with(|r| *r == RenderReason::ReportRowStale);
+        if !stale.is_empty() {
+            groups.push(format!(
+                "{} without a current report row ({})",
+                stale.len(),
+                frame_list(&stale)
+            ));
+        }
+        let unreadable: Vec<String> = self
+            .render
+            .iter()
+            .filter_map(|(frame, reason)| match reason {
+                RenderReason::Unreadable(cause) => Some(format!("frame {frame}: {cause}")),
+                _ => None,
+            })
+            .collect();
+        if !unreadable.is_empty() {
+            groups.push(format!(
+                "{} unreadable ({})",
+                unreadable.len(),
+                unreadable.join("; ")
+            ));
+        }
+        text.push(' ');
+        text.push_str(&groups.join(", "));
+        text
+    }
+}
+
+/// What a sequence did.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SequenceOutcome {
+    /// Frames rendered and written by this run, in order.
+    pub rendered: Vec<u32>,
+    /// Frames left as they were (resume).
+    pub skipped: Vec<u32>,
+    /// Set when resuming.
+    pub plan: Option<ResumePlan>,
+    /// A stop request ended the sequence before every frame was done.
+    pub interrupted: bool,
+    /// Frames of the range neither skipped nor rendered (only after an interruption).
+    pub remaining: Vec<u32>,
+    /// Wall-clock seconds per rendered frame (0 when none was rendered).
+    pub secs_per_frame: f64,
+}
+
+impl SequenceOutcome {
+    /// Frames of the range that are complete on disk now, sorted.
+    pub fn done(&self) -> Vec<u32> {
+        let mut done: Vec<u32> = self.skipped.iter().chain(&self.rendered).copied().collect();
+        done.sort_unstable();
+        done
+    }
+}
+
+/// `1-3, 7, 9-12`.
+pub fn frame_list(frames: &[u32]) -> String {
+    if frames.is_empty() {
+        return "none".to_string();
+    }
+    let mut sorted = frames.to_vec();
+    sorted.sort_unstable();
+    sorted.dedup();
+    let mut runs: Vec<(u32, u32)> = Vec::new();
+    for frame in sorted {
+        match runs.last_mut() {
+            Some((_, last)) if *last + 1 == frame => *last = frame,
+            _ => runs.push((frame, frame)),
+        }
+    }
+    runs.iter()
+        .map(|&(first, last)| {
+            if first == last {
+                first.to_string()
+            } else {
+                format!("{first}-{last}")
+            }
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// Whether the EXR at `path` is a complete frame `frame` made from `expected` inputs. Reads every
+/// pixel: a truncated or corrupted file fails here.
+pub fn check_frame_file(path: &Path, frame: u32, expected: &InputHash) -> Result<(), RenderReason> {
+    match std::fs::symlink_metadata(path) {
+        Err(error) if error.kind() == std::io::ErrorKind::NotFound => {
+            return Err(RenderReason::Missing)
+        }
+        Err(error) => return Err(RenderReason::Unreadable(error.to_string())),
+        Ok(_) => {}
+    }
+    let (_, meta) = crate::output::read_frame_exr(path)
+        .map_err(|error| RenderReason::Unreadable(error.to_string()))?;
+    let hash = meta
+        .text_attributes
+        .iter()
+        .find(|(key, _)| key == INPUT_HASH_ATTRIBUTE)
+        .map(|(_, value)| value.as_str());
+    if meta.frame != frame || hash != Some(expected.hex().as_str()) {
+        return Err(RenderReason::HashDiffers);
+    }
+    Ok(())
+}
+
+/// Sorts the frames of `range` in `out_dir` into complete (skip) and to render, checking the EXR
+/// files in parallel and each report row's hash.
+pub fn plan_resume(
+    job: &RenderJob,
+    range: FrameRange,
+    width: u32,
+    height: u32,
+    out_dir: &Path,
+    report: &ReportWriter,
+) -> ResumePlan {
+    let expected = job.input_hash(width, height);
+    let frames: Vec<u32> = range.frames().collect();
+    let checks: Vec<Result<(), RenderReason>> = frames
+        .par_iter()
+        .map(|&frame| {
+            let path = crate::output::exr::frame_path(out_dir, job.scene_name(), frame);
+            check_frame_file(&path, frame, &expected)
+        })
+        .collect();
+    let mut plan = ResumePlan::default();
+    for (frame, check) in frames.into_iter().zip(checks) {
+        let check = check.and_then(|()| {
+            if report.row_input_hash(frame).as_deref() == Some(expected.hex().as_str()) {
+                Ok(())
+            } else {
+                Err(RenderReason::ReportRowStale)
+            }
+        });
+        match check {
+            Ok(()) => plan.skip.push(frame),
+            Err(reason) => plan.render.push((frame, reason)),
+        }
+    }
+    plan
+}
+
+/// Notes for the user about the output folder (removed leftovers); printed as they come.
+fn note(text: &str) {
+    eprintln!("note: {text}");
+}
+
+fn paths_list(paths: &[PathBuf]) -> String {
+    paths
+        .iter()
+        .map(|p| p.display().to_string())
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+impl RenderJob {
+    /// Renders `options.range` into `options.out_dir`: checks the folder can be written (exit 2
+    /// otherwise), removes temporary files that killed processes left there, skips complete frames
+    /// when resuming, and stops early on a stop request. Each frame's EXR (and PNG) is written
+    /// before its report row, each renamed into place whole.
+    pub fn render_sequence(
+        &self,
+        options: &SequenceOptions<'_>,
+    ) -> Result<SequenceOutcome, SnellError> {
+        let SequenceOptions {
+            range,
+            width,
+            height,
+            out_dir,
+            write_png,
+            progress,
+            resume,
+            stop,
+        } = *options;
+        crate::output::ensure_output_dir(out_dir)?;
+        crate::output::check_writable(out_dir)?;
+        let stale =
+            crate::output::temporary::remove_stale(out_dir, crate::sim::checkpoint::CHECKPOINT_DIR);
+        if !stale.is_empty() {
+            note(&format!(
+                "removed {} temporary file(s) left by a render that was killed: {}",
+                stale.len(),
+                paths_list(&stale)
+            ));
+        }
+        if let Some(text) = self.use_checkpoints(out_dir)? {
+            note(&text);
+        }
+        let report = ReportWriter::create(out_dir)?;
+        let plan = resume.then(|| plan_resume(self, range, width, height, out_dir, &report));
+        let (to_render, skipped): (Vec<u32>, Vec<u32>) = match &plan {
+            Some(plan) => {
+                eprintln!("{}", plan.summary());
+                (
+                    plan.render.iter().map(|(frame, _)| *frame).collect(),
+                    plan.skip.clone(),
+                )
+            }
+            None => (range.frames().collect(), Vec::new()),
+        };
+        let stop_requested = || stop.is_some_and(|flag| flag.load(Ordering::SeqCst));
+        let mut rendered = Vec::new();
+        let mut interrupted = false;
+        let started = Instant::now();
+        if !to_render.is_empty() {
+            let mut renderer = Renderer::new()?;
+            self.upload_textures(&mut renderer)?;
+            let bar = super::progress_bar(to_render.len() as u64, progress);
+            // Frames are encoded and written on a second thread while the next one is refracted
+            // and rendered (EXR compression costs about as much as the rest of a frame). The
+            // channel holds one frame, so memory stays bounded; the report row of a frame is
+            // appended only after its EXR is safely renamed into place.
+            let (sender, receiver) = std::sync::mpsc::sync_channel::<FrameToWrite>(1);
+            let written = std::thread::scope(|scope| {
+                let writer = scope.spawn(move || super::write_frames(receiver, report, write_png));
+                let mut render_error = None;
+                // The tracking of the frame rendered last, for the next frame's popping test.
+                let mut last: Option<(u32, VertexTracking)> = None;
+                for &frame in &to_render {
+                    if stop_requested() {
+                        interrupted = true;
+                        break;
+                    }
+                    bar.set_message(format!("frame {frame}"));
+                    let previous = match last.take() {
+                        Some((last_frame, tracking)) if last_frame + 1 == frame => {
+                            Ok(Some(tracking))
+                        }
+                        // After a skipped frame (or at the start): frame - 1 recomputed, so
+                        // the frame is judged exactly as in an uninterrupted run.
+                        _ => self.previous_tracking(frame, width, height),
+                    };
+                    let result = previous.and_then(|previous| {
+                        self.refract_and_render(&mut renderer, frame, width, height, previous)
+                    });
+                    let (refracted, frame_pixels) = match result {
+                        Ok(done) => done,
+                        Err(error) => {
+                            render_error = Some(error);
+                            break;
+                        }
+                    };
+                    let job = FrameToWrite {
+                        path: crate::output::exr::frame_path(out_dir, &self.scene.name, frame),
+                        meta: self.frame_meta(&refracted),
+                        report: self.frame_report(&refracted, width, height),
+                        rendered: frame_pixels,
+                    };
+                    last = Some((frame, refracted.tracking));
+                    if sender.send(job).is_err() {
+                        break; // the writer stopped on an error: it is returned below
+                    }
+                    rendered.push(frame);
+                    bar.inc(1);
+                }
+                drop(sender);
+                let written = writer
+                    .join()
+                    .expect("the frame writer thread does not panic");
+                match render_error {
+                    Some(error) => Err(error),
+                    None => written,
+                }
+            });
+            bar.finish_and_clear();
+            written?;
+        }
+        let secs = started.elapsed().as_secs_f64();
+        let remaining: Vec<u32> = to_render
+            .iter()
+            .copied()
+            .filter(|frame| !rendered.contains(frame))
+            .collect();
+        Ok(SequenceOutcome {
+            secs_per_frame: if rendered.is_empty() {
+                0.0
+            } else {
+                secs / rendered.len() as f64
+            },
+            rendered,
+            skipped,
+            plan,
+            interrupted,
+            remaining,
+        })
+    }
+
+    /// Refracts and renders `frame` with `previous` (the tracking of frame - 1) for popping.
+    fn refract_and_render(
+        &self,
+        renderer: &mut Renderer,
+        frame: u32,
+        width: u32,
+        height: u32,
+        previous: Option<VertexTracking>,
+    ) -> Result<(super::RefractedFrame, RenderedFrame), SnellError> {
+        let mut refracted = self.refract(frame, width, height, previous.as_ref())?;
+        let rendered = self.render_refracted(renderer, &mut refracted, width, height)?;
+        Ok((refracted, rendered))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn frame_lists_are_compact() {
+        assert_eq!(frame_list(&[]), "none");
+        assert_eq!(frame_list(&[3]), "3");
+        assert_eq!(frame_list(&[1, 2, 3, 7, 9, 10, 11, 12]), "1-3, 7, 9-12");
+        assert_eq!(frame_list(&[5, 4, 4, 1]), "1, 4-5");
+    }
+
+    #[test]
+    fn the_plan_summary_counts_skips_and_says_why_others_render() {
+        let plan = ResumePlan {
+            skip: vec![1, 2, 3],
+            render: vec![
+                (4, RenderReason::HashDiffers),
+                (
+                    5,
+                    RenderReason::Unreadable("OpenEXR decoding: truncated".into()),
+                ),
+                (6, RenderReason::Missing),
+                (7, RenderReason::Missing),
+                (8, RenderReason::ReportRowStale),
+            ],
+        };
+        assert_eq!(
+            plan.summary(),
+            "resume: 3 of 8 frame(s) complete from the same inputs, skipped (1-3); rendering 5: \
+             2 missing (6-7), 1 made from other inputs, hash differs (4), 1 without a current \
+             report row (8), 1 unreadable (frame 5: OpenEXR decoding: truncated)"
+        );
+        let done = ResumePlan {
+            skip: vec![1, 2],
+            render: vec![],
+        };
+        assert_eq!(
+            done.summary(),
+            "resume: 2 of 2 frame(s) complete from the same inputs, skipped (1-2); nothing to render"
+        );
+    }
+
+    #[test]
+    fn a_missing_or_garbage_file_is_told_apart() {
+        let dir = tempfile::tempdir().unwrap();
+        let hash = InputHash([7; 32]);
+        let path = dir.path().join("pool.0001.exr");
+        assert_eq!(
+            check_frame_file(&path, 1, &hash),
+            Err(RenderReason::Missing)
+        );
+        std::fs::write(&path, b"not an exr").unwrap();
+        assert!(matches!(
+            check_frame_file(&path, 1, &hash),
+            Err(RenderReason::Unreadable(cause)) if cause.contains("pool.0001.exr")
+        ));
+    }
+}
