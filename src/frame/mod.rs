@@ -275,21 +275,10 @@ impl RenderJob {
         self.dynamics.use_checkpoints(out_dir, &self.scene.name)
     }
 
-    /// The scene file and every file it references (character models with their buffers and
-    /// images, image textures), sorted, without repeats.
-    pub fn input_files(&self) -> Vec<PathBuf> {
-        let mut files: Vec<PathBuf> = std::iter::once(self.scene.path.clone())
-            .chain(
-                self.dynamics
-                    .characters
-                    .iter()
-                    .flat_map(|c| c.asset.files().iter().cloned()),
-            )
-            .chain(self.scene.image_files())
-            .collect();
-        files.sort();
-        files.dedup();
-        files
+    /// Every file the scene references besides the scene file (character models with their
+    /// buffers and images, image textures), sorted, without repeats.
+    pub fn referenced_files(&self) -> Vec<PathBuf> {
+        inputs::referenced_files(&self.scene, &self.dynamics.characters)
     }
 
     pub fn scene_name(&self) -> &str {

@@ -393,11 +393,7 @@ impl Watcher {
         state.revision += 1;
         match loaded {
             Ok(job) => {
-                self.assets = job
-                    .input_files()
-                    .into_iter()
-                    .filter(|path| path != &self.scene_path)
-                    .collect();
+                self.assets = job.referenced_files();
                 let timeline = job.timeline();
                 let timeline_first = timeline.first_frame;
                 state.scene = Some(SceneInfo {
