@@ -103,8 +103,11 @@ pub fn scrub_latency(scene_path: &Path, frames: usize) -> Result<ScrubFigures, S
         let last = scene["scene"]["last_frame"].as_u64().unwrap_or(1) as u32;
         let span = last - first + 1;
         let count = frames.clamp(1, span as usize) as u32;
-        // Frames spread over the timeline, far enough apart not to be each other's prefetch.
-        let picks: Vec<u32> = (0..count).map(|i| first + i * span / count).collect();
+        // Frames spread over the timeline, far enough apart not to be each other's prefetch, and
+        // centred in their share of it (the first frame is rendered when the scene loads).
+        let picks: Vec<u32> = (0..count)
+            .map(|i| first + i * span / count + span / (2 * count))
+            .collect();
         let (mut uncached, mut cached) = (Vec::new(), Vec::new());
         for frame in picks {
             wait_idle(&url)?;
