@@ -78,13 +78,16 @@ fn exact_method_renders_tiny_through_the_cli() {
     assert!(linear["vertices"].get("newton_fallback").is_none());
     assert!(linear["triangles"].get("subdivided").is_none());
 
-    // A coarser tolerance subdivides no more than the default.
+    // A coarser tolerance subdivides less than the default.
     let coarse = render("exact", "coarse", &["--subdivision-px", "4"]);
     let coarse_subdivided = report_rows(&coarse)[0]["counts"]["triangles"]["subdivided"]
         .as_u64()
         .unwrap_or(0);
     eprintln!("tiny frame 2 at 320x180: {subdivided} triangles subdivided at 0.25 px, {coarse_subdivided} at 4 px");
-    assert!(coarse_subdivided <= subdivided);
+    // The ball's and the pool's big triangles bend visibly even at this size (10 split, measured),
+    // and a 16x coarser tolerance splits fewer (none, measured).
+    assert!(subdivided > 0);
+    assert!(coarse_subdivided < subdivided);
 }
 
 #[test]
@@ -92,20 +95,27 @@ fn bad_subdivision_tolerance_exits_2() {
     let dir = tempfile::tempdir().unwrap();
     let scene = dir.path().join("tiny.toml");
     std::fs::write(&scene, TINY).unwrap();
-    for bad in ["0", "-1", "NaN"] {
+    for bad in ["0", "-1", "NaN", "inf"] {
+        let flag = format!("--subdivision-px={bad}");
         let output = snell(
             &[
                 "render",
                 scene.to_str().unwrap(),
                 "--method",
                 "exact",
-                "--subdivision-px",
-                bad,
+                &flag,
             ],
             dir.path(),
         );
-        assert_eq!(output.status.code(), Some(2), "--subdivision-px {bad}");
+        assert_eq!(output.status.code(), Some(2), "{flag}");
         let stderr = String::from_utf8_lossy(&output.stderr);
-        assert!(stderr.contains("--subdivision-px"), "{stderr}");
+        assert!(
+            stderr.contains("expected a number of pixels > 0"),
+            "{flag}: {stderr}"
+        );
+        assert!(
+            !dir.path().join("output").exists(),
+            "{flag}: output written"
+        );
     }
 }
