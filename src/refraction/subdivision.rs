@@ -85,9 +85,26 @@ impl Subdivider<'_> {
         triangle: [SubdivisionVertex; 3],
         out: &mut Vec<[SubdivisionVertex; 3]>,
     ) -> SubdivisionStats {
+        let first = std::array::from_fn(|k| self.split_edge(&triangle[k], &triangle[(k + 1) % 3]));
+        self.subdivide_from(triangle, first, out)
+    }
+
+    /// [`Self::subdivide`] given the answers of [`Self::split_edge`] for the triangle's own edges
+    /// (`first[k]` for `triangle[k]`-`triangle[k + 1]`): a frame computes them once per edge shared
+    /// by two triangles. The same output as `subdivide`, since the answers are the same.
+    pub fn subdivide_from(
+        &self,
+        triangle: [SubdivisionVertex; 3],
+        first: [Option<SubdivisionVertex>; 3],
+        out: &mut Vec<[SubdivisionVertex; 3]>,
+    ) -> SubdivisionStats {
         let mut stats = SubdivisionStats::default();
         let before = out.len();
-        self.subdivide_at(triangle, [false; 3], 0, out, &mut stats);
+        if self.settings.max_depth == 0 {
+            out.push(triangle);
+        } else {
+            self.split_with(triangle, first, 0, out, &mut stats);
+        }
         stats.pieces = (out.len() - before) as u32;
         stats
     }
@@ -114,6 +131,19 @@ impl Subdivider<'_> {
                 self.split_edge(&t[k], &t[(k + 1) % 3])
             }
         });
+        self.split_with(t, mids, level, out, stats);
+    }
+
+    /// Splits `t` at the midpoints `mids` (of edges k = `t[k]`-`t[k+1]`) and goes on with the
+    /// pieces one level deeper.
+    fn split_with(
+        &self,
+        t: [SubdivisionVertex; 3],
+        mids: [Option<SubdivisionVertex>; 3],
+        level: u32,
+        out: &mut Vec<[SubdivisionVertex; 3]>,
+        stats: &mut SubdivisionStats,
+    ) {
         let count = mids.iter().filter(|m| m.is_some()).count();
         if count == 0 {
             out.push(t);
