@@ -134,3 +134,92 @@ fn exact_means_are_at_least_100_times_smaller_everywhere() {
         assert!(exact < r.result.linear.mean, "{}", r.row.config());
     }
 }
+
+fn snell(args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_snell"))
+        .args(args)
+        .output()
+        .expect("the snell binary runs")
+}
+
+/// `snell accuracy --csv`: the Markdown table on stdout with the setup stated, and a CSV with
+/// exactly the columns, a line per row and method.
+#[test]
+fn cli_prints_the_table_and_writes_the_csv() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv_path = dir.path().join("nested/accuracy.csv");
+    let out = snell(&[
+        "accuracy",
+        "--table",
+        "4.5",
+        "--spacing",
+        "50",
+        "--csv",
+        csv_path.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let stdout = String::from_utf8(out.stdout).unwrap();
+    assert!(
+        stdout.contains("every 50-unit cell (512 samples)"),
+        "{stdout}"
+    );
+    assert!(
+        stdout.contains("4 concentric rings, each 0.9 times as wide"),
+        "{stdout}"
+    );
+    assert_eq!(
+        stdout.lines().filter(|l| l.starts_with("| 4.5 |")).count(),
+        6
+    );
+    let csv = std::fs::read_to_string(&csv_path).unwrap();
+    let mut lines = csv.lines();
+    assert_eq!(
+        lines.next(),
+        Some("config,method,mean,std,counted,excluded,thesis_mean")
+    );
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    assert_eq!(rows.len(), 12);
+    assert_eq!(rows[0][0], "t4.5/grid-6x6/eye450");
+    assert_eq!((rows[0][1], rows[1][1]), ("linear", "exact"));
+    for row in &rows {
+        assert_eq!(row.len(), 7);
+        let mean: f64 = row[2].parse().unwrap();
+        let counted: usize = row[4].parse().unwrap();
+        let excluded: usize = row[5].parse().unwrap();
+        assert!(mean > 0.0 && counted > 0);
+        assert_eq!(
+            counted + excluded,
+            512,
+            "grids have no samples in the air: {row:?}"
+        );
+    }
+}
+
+/// Bad options name the option and what it takes, and exit with 2.
+#[test]
+fn cli_rejects_bad_options_with_exit_2() {
+    for (args, expected) in [
+        (
+            vec!["accuracy", "--spacing", "0.5"],
+            "--spacing: must be 2 to 200",
+        ),
+        (vec!["accuracy", "--rings", "0"], "--rings: must be 1 to 64"),
+        (
+            vec!["accuracy", "--ring-ratio", "0.01"],
+            "--ring-ratio: must be a number",
+        ),
+        (
+            vec!["accuracy", "--table", "4.3"],
+            "--table: no table \"4.3\"",
+        ),
+    ] {
+        let out = snell(&args);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {stderr}");
+        assert!(stderr.contains(expected), "{args:?}: {stderr}");
+    }
+}

@@ -575,4 +575,60 @@ mod tests {
             .iter()
             .all(|p| p.x.abs() <= 195.0 && p.z.abs() <= 195.0));
     }
+    /// On a hemisphere bowl, points just outside the rim are seen through its nearly vertical wall.
+    /// Newton in the world's height field (infinite slope at the rim) leaves the disk or lands on
+    /// the far wall; in the chart turned to the surface normal it finds the image, which obeys
+    /// Snell's law there and reproduces the point through the computed vertex.
+    #[test]
+    fn exact_sight_points_through_a_hemisphere_rim_obey_snell() {
+        use crate::accuracy::membranes::Orientation;
+        let m = ThesisMembrane::sphere(142.0, Orientation::Bowl, RingFaceting::THESIS_FIT);
+        let setup = VolumeSetup::thesis(450.0, 20.0);
+        let eye = setup.eye(&m);
+        let cells = Cells::build(&m, eye, 1.0, 1.51);
+        let field = m.surface.as_height_field();
+        let mut images = Vec::new();
+        let (mut near_rim, mut world_chart_failures) = (0, 0);
+        for v in setup.samples(&m) {
+            if v.y > field.height(v.x, v.z) {
+                continue;
+            }
+            cells.images(v, &mut images);
+            let [(facet, linear)] = images.as_slice() else {
+                continue;
+            };
+            if cells.extrapolated[*facet] || DVec2::new(linear.x, linear.z).length() < 137.0 {
+                continue;
+            }
+            near_rim += 1;
+            let s = exact_sight_point(&m, eye, v, *linear, 1.0, 1.51).expect("Newton converges");
+            assert!(sight_point_is_valid(&m, eye, v, s), "V {v}: S {s}");
+            // Snell: n1 (I x N) = n2 (T x N), with I and T the unit directions in and out.
+            let normal = field.normal(s.x, s.z);
+            let incoming = (s - eye).normalize();
+            let outgoing = (v - s).normalize();
+            let mismatch = (incoming.cross(normal) - 1.51 * outgoing.cross(normal)).length();
+            assert!(mismatch < 1e-9, "V {v}: Snell off by {mismatch:e}");
+            let c = computed_vertex(&m, eye, virtual_vertex(eye, s, v, 1.0, 1.51), 1.0, 1.51)
+                .expect("a computed vertex");
+            assert!((c - v).length() < 1e-6, "V {v}: C {c}");
+            let problem = FermatProblem {
+                surface: field,
+                eye,
+                point: v,
+                n_above: 1.0,
+                n_below: 1.51,
+            };
+            let in_world = solve_sight_point(&problem, DVec2::new(linear.x, linear.z))
+                .map(|e| e.sight_point)
+                .filter(|&e| sight_point_is_valid(&m, eye, v, e));
+            world_chart_failures += in_world.is_none() as usize;
+        }
+        assert!(near_rim > 100, "{near_rim} samples seen near the rim");
+        // Why the chart is there: in world coordinates most of these fail.
+        assert!(
+            world_chart_failures * 2 > near_rim,
+            "{world_chart_failures} of {near_rim}"
+        );
+    }
 }
