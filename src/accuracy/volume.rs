@@ -263,7 +263,8 @@ pub fn first_surface_hit(
     /// surfaces (at most two per ray) hides between two samples except at grazing incidence.
     const SCAN_SAMPLES: usize = 256;
     let field = membrane.surface.as_height_field();
-    if !(direction.y < 0.0) {
+    // Rays going up (or NaN) never reach a surface below the eye.
+    if direction.y.is_nan() || direction.y >= 0.0 {
         return None;
     }
     let (low, high) = membrane.surface.height_range();
@@ -275,11 +276,10 @@ pub fn first_surface_hit(
         let p = origin + u * direction;
         p.y - field.height(p.x, p.z)
     };
-    let mut previous_u = u_start;
-    let mut previous = above(u_start);
-    if previous < 0.0 {
+    if above(u_start) < 0.0 {
         return None;
     }
+    let mut previous_u = u_start;
     for k in 1..=SCAN_SAMPLES {
         let u = u_start + (u_end - u_start) * k as f64 / SCAN_SAMPLES as f64;
         let value = above(u);
@@ -304,9 +304,7 @@ pub fn first_surface_hit(
                 .then_some(hit);
         }
         previous_u = u;
-        previous = value;
     }
-    let _ = previous;
     None
 }
 
