@@ -29,8 +29,8 @@ pub struct AccuracyArgs {
     #[arg(long, default_value_t = RingFaceting::THESIS_FIT.width_ratio, value_name = "RATIO")]
     pub ring_ratio: f64,
     /// Distance between samples in the 400-unit cube, scene units: (400 / SPACING)^3 samples per
-    /// volume (10: 64,000). Smaller is more precise and slower (time grows with its cube); the
-    /// means settle to about 1 % by 10.
+    /// volume (10: 64,000). Smaller is more precise and slower (time grows with its cube).
+    /// Measured: every linear mean at 10 is within 0.5 % of its value at 5, at 20 within 3.1 %.
     #[arg(long, default_value_t = DEFAULT_SPACING, value_name = "UNITS")]
     pub spacing: f64,
     /// Only the rows of one table: 4.1 (eye heights and offsets over a flat disk), 4.2 (sphere
