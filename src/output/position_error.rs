@@ -211,6 +211,11 @@ impl PositionField<'_> {
     fn place_of(&self, target: [f32; 3], x: usize, y: usize, window: usize) -> Option<[f64; 2]> {
         let (cx, cy) = (x as isize, y as isize);
         let w = window as isize;
+        if self.at(cx, cy) == Some(target) {
+            // The same point at the same pixel: nothing nearer exists (frames compared with
+            // themselves, or regions that did not change).
+            return Some([x as f64, y as f64]);
+        }
         let mut best: Option<(f64, isize, isize)> = None;
         for py in cy - w..=cy + w {
             for px in cx - w..=cx + w {
