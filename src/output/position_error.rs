@@ -8,7 +8,8 @@
 //! Jacobian is fitted by least squares from the neighbours (3x3) that see the same object, pinned
 //! at the pixel's own `P`, and the offset where the linear map equals A's `P` (least squares in the
 //! three coordinates) is the sub-pixel position; when that offset leaves the pixel the fit moves to
-//! the neighbour and repeats (Gauss-Newton on the piecewise-linear field). A smooth field shifted
+//! the neighbour and repeats (Gauss-Newton on the piecewise-linear field; at most
+//! [`MAX_REFINEMENT_STEPS`] moves, so a match may be found a few pixels beyond the window). A smooth field shifted
 //! by 0.3 px measures 0.3 px to well under 0.01 px (tested), so errors far below the 0.1 px the
 //! method aims at are resolved.
 
@@ -463,18 +464,21 @@ mod tests {
         assert_eq!(error.mean_px, 0.0);
     }
 
-    /// A pixel far from its match is found anywhere in the window, and not beyond it.
+    /// A pixel far from its match is found anywhere in the window; beyond it only as far as the
+    /// refinement walks (MAX_REFINEMENT_STEPS pixels, then at most one more).
     #[test]
     fn the_window_bounds_the_search() {
         let a = frame_of(40, 20, smooth_position);
-        let b = frame_of(40, 20, |x, y| smooth_position(x + 5.0, y));
-        let near = position_error(&a, &b, 6, false).unwrap();
-        assert!((near.p99_px - 5.0).abs() < 0.01, "{}", near.p99_px);
-        let narrow = position_error(&a, &b, 3, false).unwrap();
+        let b = frame_of(40, 20, |x, y| smooth_position(x + 8.0, y));
+        let near = position_error(&a, &b, 8, false).unwrap();
+        assert!((near.p99_px - 8.0).abs() < 0.01, "{}", near.p99_px);
+        let narrow = position_error(&a, &b, 0, false).unwrap();
+        let reach = (MAX_REFINEMENT_STEPS + 1) as f64;
         assert!(
-            narrow.p99_px < 4.5,
-            "a 3 px window cannot find a 5 px shift: {}",
-            narrow.p99_px
+            narrow.max_px <= reach + 1e-4 && // P is f32
+            narrow.p99_px > reach - 0.5,
+            "a window of 0 px reaches {reach} px by refinement: {:?}",
+            narrow
         );
     }
 }
