@@ -228,9 +228,16 @@ fn locate_on_flat_water_matches_the_exact_solution() {
         );
         worst_m = worst_m.max((row.virtual_vertex.as_dvec3() - exact).length());
     }
+    // Measured: 1.5e-5 m at 64x64 cells: the cells interpolate the rays linearly across a facet
+    // (an error second order in the facet size, tested in refraction/virtual_geometry.rs).
+    eprintln!("flat water: largest distance to the exact virtual vertex {worst_m:.3e} m");
     assert!(
-        worst_m < 5e-4,
+        worst_m < 5e-5,
         "largest distance to the exact virtual vertex {worst_m} m"
+    );
+    assert!(
+        worst_m > 0.0,
+        "two different computations agree to the last bit? suspicious"
     );
 }
 
@@ -580,4 +587,92 @@ fn export_bad_input_is_exit_2_naming_the_path() {
         dir.path(),
     );
     expect_exit(&output, 2, &["--format \"fbx\"", "obj", "ply"]);
+}
+
+/// The metric on real renders, against a known answer: the camera turned about its eye by a small
+/// yaw. The eye does not move, so the refraction (virtual geometry) is the same and every pixel's
+/// ray only turns: the true displacement of each pixel is where camera B projects the direction
+/// of A's ray through that pixel's centre (about 0.3 px at the centre, more toward the sides).
+/// The measured mean and p99 must match the true ones far below the 0.1 px the issue asks to
+/// resolve.
+#[test]
+fn compare_measures_a_known_camera_turn_on_real_renders() {
+    use snell::output::position_error::position_error;
+    let dir = tempfile::tempdir().unwrap();
+    let (width, height) = (320u32, 180u32);
+    let scene_a = write(dir.path(), "a.toml", TINY);
+    let job_a = RenderJob::prepare(&scene_a).unwrap();
+    let camera_a = job_a.camera_at(1);
+    let focal_px = height as f64 / 2.0 / (camera_a.fov_y_deg as f64 / 2.0).to_radians().tan();
+    let yaw = (0.3 / focal_px).atan() as f32;
+    let target_b =
+        camera_a.eye + glam::Quat::from_rotation_y(yaw) * (camera_a.target - camera_a.eye);
+    let text_b = TINY.replace(
+        "target = [0.0, -0.6, 0.3]",
+        &format!("target = [{}, {}, {}]", target_b.x, target_b.y, target_b.z),
+    );
+    assert_ne!(text_b, TINY);
+    let scene_b = write(dir.path(), "b.toml", &text_b);
+    let size = format!("{width}x{height}");
+    for (scene, out) in [(&scene_a, "ra"), (&scene_b, "rb")] {
+        let output = snell(
+            &[
+                "render",
+                scene.to_str().unwrap(),
+                "--frames",
+                "1",
+                "--out",
+                out,
+                "--size",
+                &size,
+            ],
+            dir.path(),
+        );
+        expect_exit(&output, 0, &[]);
+    }
+    let read = |path: PathBuf| snell::output::read_frame_exr(&path).unwrap().0;
+    let a = read(dir.path().join("ra/tiny.0001.exr"));
+    let b = read(dir.path().join("rb/tiny.0001.exr"));
+    let camera_b = RenderJob::prepare(&scene_b).unwrap().camera_at(1);
+    assert_eq!(camera_a.eye, camera_b.eye);
+
+    // The true displacement of every pixel where both frames see the same object.
+    let mut truth: Vec<f64> = Vec::new();
+    for y in 0..height {
+        for x in 0..width {
+            let index = (y * width + x) as usize;
+            if a.object[index] == 0 || a.object[index] != b.object[index] {
+                continue;
+            }
+            let centre = glam::Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
+            let ray = camera_a.ray_through_pixel(centre, width, height).as_dvec3();
+            let far = camera_a.eye.as_dvec3() + ray * 10.0;
+            let moved = camera_b.pixel_of(far.as_vec3(), width, height).unwrap();
+            truth.push((moved - centre).as_dvec2().length());
+        }
+    }
+    truth.sort_by(f64::total_cmp);
+    let true_mean = truth.iter().sum::<f64>() / truth.len() as f64;
+    let true_p99 = truth[(truth.len() as f64 * 0.99).ceil() as usize - 1];
+
+    let measured = position_error(&a, &b, 8, false).unwrap();
+    assert_eq!(measured.counted, truth.len());
+    eprintln!(
+        "camera turn: true mean {true_mean:.4} px p99 {true_p99:.4} px; measured mean {:.4} px p99 {:.4} px max {:.4} px",
+        measured.mean_px, measured.p99_px, measured.max_px
+    );
+    assert!(
+        true_mean > 0.25,
+        "the turn moves pixels by about 0.3 px: {true_mean}"
+    );
+    assert!(
+        (measured.mean_px - true_mean).abs() < 0.01,
+        "mean {} vs true {true_mean}",
+        measured.mean_px
+    );
+    assert!(
+        (measured.p99_px - true_p99).abs() < 0.01,
+        "p99 {} vs true {true_p99}",
+        measured.p99_px
+    );
 }
