@@ -413,25 +413,27 @@ fn parse_obj(text: &str) -> ParsedObj {
     parsed
 }
 
+/// `snell export SCENE --frame 2 --out OUT EXTRA...`, run in `cwd`.
+fn export(scene: &Path, out: &Path, extra: &[&str], cwd: &Path) -> Output {
+    let mut args = vec![
+        "export",
+        scene.to_str().unwrap(),
+        "--frame",
+        "2",
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    snell(&args, cwd)
+}
+
 #[test]
 fn export_writes_the_frames_geometry_and_camera() {
     let dir = tempfile::tempdir().unwrap();
     let scene = write(dir.path(), "tiny.toml", TINY);
     let out = dir.path().join("export");
     let frame = 2;
-    let output = snell(
-        &[
-            "export",
-            scene.to_str().unwrap(),
-            "--frame",
-            "2",
-            "--out",
-            out.to_str().unwrap(),
-            "--size",
-            "640x360",
-        ],
-        dir.path(),
-    );
+    let output = export(&scene, &out, &["--size", "640x360"], dir.path());
     expect_exit(&output, 0, &[]);
 
     let job = RenderJob::prepare(&scene).unwrap();
@@ -521,19 +523,7 @@ fn export_writes_the_frames_geometry_and_camera() {
 
     // PLY: one file per object with the same counts.
     let ply_dir = dir.path().join("ply");
-    let output = snell(
-        &[
-            "export",
-            scene.to_str().unwrap(),
-            "--frame",
-            "2",
-            "--out",
-            ply_dir.to_str().unwrap(),
-            "--format",
-            "ply",
-        ],
-        dir.path(),
-    );
+    let output = export(&scene, &ply_dir, &["--format", "ply"], dir.path());
     expect_exit(&output, 0, &[]);
     let mut ply_vertices = 0;
     let mut ply_files = 0;
@@ -561,31 +551,8 @@ fn export_bad_input_is_exit_2_naming_the_path() {
     let scene = write(dir.path(), "tiny.toml", TINY);
     let blocker = write(dir.path(), "blocker", "a file, not a directory");
     let out = blocker.join("export");
-    let output = snell(
-        &[
-            "export",
-            scene.to_str().unwrap(),
-            "--frame",
-            "1",
-            "--out",
-            out.to_str().unwrap(),
-        ],
-        dir.path(),
-    );
-    expect_exit(&output, 2, &["blocker"]);
-    let output = snell(
-        &[
-            "export",
-            scene.to_str().unwrap(),
-            "--frame",
-            "1",
-            "--out",
-            "x",
-            "--format",
-            "fbx",
-        ],
-        dir.path(),
-    );
+    expect_exit(&export(&scene, &out, &[], dir.path()), 2, &["blocker"]);
+    let output = export(&scene, Path::new("x"), &["--format", "fbx"], dir.path());
     expect_exit(&output, 2, &["--format \"fbx\"", "obj", "ply"]);
 }
 
