@@ -21,7 +21,7 @@ pub struct LocateArgs {
     /// lines and lines starting with # are skipped).
     #[arg(long, value_name = "FILE.csv")]
     pub points: PathBuf,
-    /// Whose refraction cells find the images: equal-t (the default) or thesis-plane.
+    /// Which refraction cells find the images: equal-t (the default) or thesis-plane.
     #[arg(long, default_value = "equal-t", value_name = "METHOD")]
     pub method: String,
 }
@@ -34,11 +34,14 @@ pub struct CompareArgs {
     /// The frame measured against it, of the same shot and size.
     pub b: PathBuf,
     /// Half-size in pixels of the square window searched in B around each pixel of A for the
-    /// pixel that sees the same world point (nearest P on the same object). Errors larger than
-    /// this are not found: the nearest P inside the window is what counts.
+    /// pixel that sees the same world point (nearest P on the same object); the sub-pixel
+    /// refinement may then walk up to 4 px further. Larger errors are not found: the nearest P
+    /// within reach is what counts, so raise the window when the frames differ a lot.
     #[arg(long, value_name = "N", default_value_t = DEFAULT_WINDOW_PX)]
     pub window: u32,
-    /// Print the figures as one JSON object instead of a table.
+    /// Print the figures as one JSON object instead of a table (keys position_error and
+    /// position_error_outside_flagged, each with mean_px, p99_px, max_px and counted; flip_mean;
+    /// object_mismatch_fraction and object_mismatch_pixels).
     #[arg(long)]
     pub json: bool,
 }
