@@ -643,3 +643,36 @@ fn compare_measures_a_known_camera_turn_on_real_renders() {
         measured.p99_px
     );
 }
+
+/// A scene with a character: the exported fox is the fox posed at that frame (and differs from
+/// its pose a few frames later), the water carries its ripples' frame.
+#[test]
+fn export_poses_characters_at_the_frame() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/fox_wading.toml");
+    let out = dir.path().join("fox");
+    expect_exit(&export(&scene, &out, &[], dir.path()), 0, &[]);
+    let obj = parse_obj(&std::fs::read_to_string(out.join("fox_wading.0002.obj")).unwrap());
+    let job = RenderJob::prepare(&scene).unwrap();
+    let mut stage_secs = Default::default();
+    let water = job.frame_water(2, &mut stage_secs).unwrap();
+    let character = water.objects.len() - 1;
+    assert!(
+        water.objects[character].name.starts_with("fox"),
+        "the last object is the posed fox: {}",
+        water.objects[character].name
+    );
+    let start = obj.objects[1 + character].1;
+    let fox = &water.objects[character].mesh.positions;
+    assert_eq!(&obj.vertices[start..start + fox.len()], &fox[..]);
+    let later = job.frame_water(6, &mut stage_secs).unwrap();
+    assert_ne!(
+        &later.objects[character].mesh.positions, fox,
+        "the fox moves: the export is of frame 2's pose"
+    );
+    let mut expected_positions = water.membrane.positions.clone();
+    for object in water.objects.iter() {
+        expected_positions.extend_from_slice(&object.mesh.positions);
+    }
+    assert_eq!(obj.vertices, expected_positions);
+}
