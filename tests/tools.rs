@@ -358,6 +358,28 @@ fn compare_of_a_frame_with_itself_is_zero_and_bad_input_is_exit_2() {
         2,
         &["fake.exr: cannot be read as a snell EXR frame"],
     );
+    // A frame written before the object layer existed cannot say which object a pixel sees.
+    let (mut old, meta) = snell::output::read_frame_exr(&frame1).unwrap();
+    old.object.clear();
+    let old_path = dir.path().join("old.exr");
+    let old_meta = snell::output::FrameMeta {
+        scene_name: "tiny".into(),
+        frame: meta.frame,
+        time_secs: meta.time_secs,
+        camera: meta.camera,
+        method: meta.method,
+        version: meta.version,
+        extra: vec![],
+    };
+    snell::output::write_frame_exr(&old_path, &old, &old_meta).unwrap();
+    expect_exit(
+        &compare(&frame1, &old_path, &[]),
+        2,
+        &[
+            "old.exr: the frame has no usable object-id layer",
+            "render it again",
+        ],
+    );
     let small = dir.path().join("small");
     render(&scene, &small, "48x27", dir.path());
     expect_exit(
