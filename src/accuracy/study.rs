@@ -276,20 +276,22 @@ fn ratio(a: f64, b: f64) -> String {
 pub fn markdown_table(results: &[StudyResult]) -> String {
     let mut out = String::new();
     out.push_str(
-        "| table | refractor | facets | thesis mean | linear mean | linear std | linear / thesis \
-| exact mean | thesis / exact | counted | excluded (none/extr./conv./no C) | air | fallbacks |\n",
+        "| table | refractor | facets | thesis mean | thesis std | linear mean | linear std \
+| linear / thesis | exact mean | thesis / exact | counted | excluded (none/extr./conv./no C) \
+| air | fallbacks |\n",
     );
-    out.push_str("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---|---:|---:|\n");
+    out.push_str("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|---:|---:|\n");
     for r in results {
         let v = &r.result;
         let e = &v.excluded;
         writeln!(
             out,
-            "| {} | {} | {} | {} | {:.4} | {:.4} | {} | {:.2e} | {} | {} | {} ({}/{}/{}/{}) | {} | {} |",
+            "| {} | {} | {} | {} | {} | {:.4} | {:.4} | {} | {:.2e} | {} | {} | {} ({}/{}/{}/{}) | {} | {} |",
             r.row.table,
             row_label(&r.row),
             r.facets,
             r.row.thesis_mean,
+            r.row.thesis_std,
             v.linear.mean,
             v.linear.std,
             ratio(v.linear.mean, r.row.thesis_mean),
