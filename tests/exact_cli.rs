@@ -119,3 +119,70 @@ fn bad_subdivision_tolerance_exits_2() {
         );
     }
 }
+
+/// `snell locate --method exact` prints exact images: each printed sight point is a stationary
+/// point of the optical path on the frame's exact surface (to the printed f32 precision), where
+/// the equal-t images of the coarse tiny membrane are measurably not.
+#[test]
+fn locate_with_the_exact_method_prints_stationary_points() {
+    use snell::refraction::exact::FermatProblem;
+    let dir = tempfile::tempdir().unwrap();
+    let points = dir.path().join("points.csv");
+    std::fs::write(
+        &points,
+        "x,y,z\n0.2,-0.6,0.1\n-0.3,-0.5,0.4\n0.0,-0.79,-0.2\n",
+    )
+    .unwrap();
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/tiny.toml");
+    let job = snell::frame::RenderJob::prepare(&scene).unwrap();
+    let mut stage_secs = Default::default();
+    let water = job.frame_water(2, &mut stage_secs).unwrap();
+    let surface = water.surface();
+    let largest_gradient = |method: &str| {
+        let output = snell(
+            &[
+                "locate",
+                scene.to_str().unwrap(),
+                "--frame",
+                "2",
+                "--points",
+                points.to_str().unwrap(),
+                "--method",
+                method,
+            ],
+            dir.path(),
+        );
+        assert!(
+            output.status.success(),
+            "{}",
+            String::from_utf8_lossy(&output.stderr)
+        );
+        let text = String::from_utf8(output.stdout).unwrap();
+        let rows: Vec<Vec<f64>> = text
+            .lines()
+            .skip(1)
+            .map(|l| l.split(',').take(8).map(|v| v.parse().unwrap()).collect())
+            .collect();
+        assert_eq!(rows.len(), 3, "{text}");
+        let given = [[0.2, -0.6, 0.1], [-0.3, -0.5, 0.4], [0.0, -0.79, -0.2]];
+        rows.iter()
+            .map(|row| {
+                let problem = FermatProblem {
+                    surface: &surface,
+                    eye: water.camera.eye.as_dvec3(),
+                    point: glam::DVec3::from(given[row[0] as usize]),
+                    n_above: job.scene.water.n_above,
+                    n_below: job.scene.water.n_below,
+                };
+                problem
+                    .optical_gradient(glam::DVec2::new(row[5], row[7]))
+                    .length()
+            })
+            .fold(0.0, f64::max)
+    };
+    let (linear, exact) = (largest_gradient("equal-t"), largest_gradient("exact"));
+    eprintln!("largest |grad L| at printed sight points: equal-t {linear:e}, exact {exact:e}");
+    // Printed f32 coordinates (~3e-8 m at 0.3 m) leave |grad L| ~ n dx / distance ~ 1e-7.
+    assert!(exact < 1e-5, "{exact}");
+    assert!(linear > 100.0 * exact, "{linear} vs {exact}");
+}
