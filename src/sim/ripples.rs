@@ -261,7 +261,52 @@ fn catmull_rom(t: f64) -> ([f64; 4], [f64; 4]) {
     )
 }
 
+/// Second derivatives (per unit parameter squared) of the Catmull-Rom weights at fraction `t`.
+fn catmull_rom_second(t: f64) -> [f64; 4] {
+    [2.0 - 3.0 * t, 9.0 * t - 5.0, 4.0 - 9.0 * t, 3.0 * t - 1.0]
+}
+
 impl RippleField<'_> {
+    /// Height, gradient and Hessian at (x, z) in one pass over the 4 x 4 nodes. The bicubic is
+    /// C1: the Hessian is that of the cell containing (x, z) (it jumps across node lines).
+    fn sample_derivatives(&self, x: f64, z: f64) -> (f64, (f64, f64), (f64, f64, f64)) {
+        let s = &self.state.settings;
+        let (nx, nz) = (s.nodes_x as i64, s.nodes_z as i64);
+        let gx = (x - s.min_x) / s.spacing_m;
+        let gz = (z - s.min_z) / s.spacing_m;
+        if !(gx >= 0.0 && gz >= 0.0 && gx <= (nx - 1) as f64 && gz <= (nz - 1) as f64) {
+            return (0.0, (0.0, 0.0), (0.0, 0.0, 0.0));
+        }
+        let (cx, cz) = (
+            (gx.floor() as i64).min(nx - 2).max(0),
+            (gz.floor() as i64).min(nz - 2).max(0),
+        );
+        let (tx, tz) = (gx - cx as f64, gz - cz as f64);
+        let ((wx, dwx), ddwx) = (catmull_rom(tx), catmull_rom_second(tx));
+        let ((wz, dwz), ddwz) = (catmull_rom(tz), catmull_rom_second(tz));
+        let mut sums = [0.0; 6];
+        for j in 0..4 {
+            let iz = (cz - 1 + j as i64).clamp(0, nz - 1) as usize;
+            for i in 0..4 {
+                let ix = (cx - 1 + i as i64).clamp(0, nx - 1) as usize;
+                let u = self.state.height_m[iz * nx as usize + ix] as f64;
+                sums[0] += wx[i] * wz[j] * u;
+                sums[1] += dwx[i] * wz[j] * u;
+                sums[2] += wx[i] * dwz[j] * u;
+                sums[3] += ddwx[i] * wz[j] * u;
+                sums[4] += dwx[i] * dwz[j] * u;
+                sums[5] += wx[i] * ddwz[j] * u;
+            }
+        }
+        // Divided as `sample` divides, so the two agree to the bit.
+        let (d, d2) = (s.spacing_m, s.spacing_m * s.spacing_m);
+        (
+            sums[0],
+            (sums[1] / d, sums[2] / d),
+            (sums[3] / d2, sums[4] / d2, sums[5] / d2),
+        )
+    }
+
     /// (height, d/dx, d/dz) at (x, z).
     fn sample(&self, x: f64, z: f64) -> (f64, f64, f64) {
         let s = &self.state.settings;
@@ -301,6 +346,12 @@ impl HeightField for RippleField<'_> {
         let (_, gx, gz) = self.sample(x, z);
         (gx, gz)
     }
+    fn hessian(&self, x: f64, z: f64) -> (f64, f64, f64) {
+        self.sample_derivatives(x, z).2
+    }
+    fn height_derivatives(&self, x: f64, z: f64) -> (f64, (f64, f64), (f64, f64, f64)) {
+        self.sample_derivatives(x, z)
+    }
 }
 
 /// Two height fields added: the analytic waves plus the ripples.
@@ -319,11 +370,20 @@ impl HeightField for SumHeightField<'_> {
         (bx + rx, bz + rz)
     }
     fn hessian(&self, x: f64, z: f64) -> (f64, f64, f64) {
-        // The waves' own (analytic) second derivatives plus the ripples' (differences of their
-        // C1 bicubic's gradient: the trait's default).
+        // Both analytic: the waves' and the ripples' bicubic's (per cell).
         let (bxx, bxz, bzz) = self.base.hessian(x, z);
         let (rxx, rxz, rzz) = self.ripples.map_or((0.0, 0.0, 0.0), |r| r.hessian(x, z));
         (bxx + rxx, bxz + rxz, bzz + rzz)
+    }
+    fn height_derivatives(&self, x: f64, z: f64) -> (f64, (f64, f64), (f64, f64, f64)) {
+        let (h, (gx, gz), (xx, xz, zz)) = self.base.height_derivatives(x, z);
+        match self.ripples {
+            None => (h, (gx, gz), (xx, xz, zz)),
+            Some(r) => {
+                let (rh, (rgx, rgz), (rxx, rxz, rzz)) = r.height_derivatives(x, z);
+                (h + rh, (gx + rgx, gz + rgz), (xx + rxx, xz + rxz, zz + rzz))
+            }
+        }
     }
 }
 
@@ -520,5 +580,46 @@ mod tests {
         }
         // Zero outside.
         assert_eq!(field.height(5.0, 0.0), 0.0);
+    }
+
+    /// The analytic Hessian (and the fused evaluation) against differences of the gradient,
+    /// inside cells (the C1 bicubic's second derivatives jump across node lines).
+    #[test]
+    fn the_hessian_is_the_derivative_of_the_gradient_inside_a_cell() {
+        let s = settings(21, Border::Reflect, 0.0);
+        let state = impulse(s, 0.1, 0.05, 0.3);
+        let field = state.field();
+        // Node spacing 0.1 m from -1: these points are >= 0.02 m from every node line.
+        for (x, z) in [(0.035, -0.265), (0.55, 0.645), (-0.775, 0.33), (0.14, 0.07)] {
+            let e = 1e-6;
+            let (xx, xz, zz) = field.hessian(x, z);
+            let (px, pz) = field.gradient(x + e, z);
+            let (mx, mz) = field.gradient(x - e, z);
+            let (qx, qz) = field.gradient(x, z + e);
+            let (rx, rz) = field.gradient(x, z - e);
+            let fd = [
+                (px - mx) / (2.0 * e),
+                (pz - mz) / (2.0 * e),
+                (qx - rx) / (2.0 * e),
+                (qz - rz) / (2.0 * e),
+            ];
+            // Curvatures here reach ~1 per m (0.01 m bump of width 0.3 m); differences of f32
+            // node heights are good to ~1e-6.
+            let close = |a: f64, b: f64| (a - b).abs() < 1e-5 * (1.0 + a.abs());
+            assert!(close(xx, fd[0]) && close(xz, fd[1]), "{xx} {xz} vs {fd:?}");
+            assert!(close(xz, fd[2]) && close(zz, fd[3]), "{xz} {zz} vs {fd:?}");
+            let (h, (gx, gz), hessian) = field.height_derivatives(x, z);
+            assert_eq!(
+                (h, gx, gz),
+                (
+                    field.height(x, z),
+                    field.gradient(x, z).0,
+                    field.gradient(x, z).1
+                )
+            );
+            assert_eq!(hessian, (xx, xz, zz));
+        }
+        // Not trivially zero: the bump is curved there.
+        assert!(field.hessian(0.14, 0.07).0.abs() > 1e-3);
     }
 }

@@ -21,7 +21,8 @@ pub struct LocateArgs {
     /// lines and lines starting with # are skipped).
     #[arg(long, value_name = "FILE.csv")]
     pub points: PathBuf,
-    /// Which refraction cells find the images: equal-t (the default) or thesis-plane.
+    /// Which refraction cells find the images: equal-t (the default) or thesis-plane; exact
+    /// prints the exact images Newton reaches from the equal-t ones (as `render --method exact`).
     #[arg(long, default_value = "equal-t", value_name = "METHOD")]
     pub method: String,
 }

@@ -11,7 +11,8 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::{check_frame, ToolError};
-use crate::frame::RenderJob;
+use crate::frame::{Method, RenderJob};
+use crate::refraction::exact::exact_images;
 use crate::refraction::flat::virtual_vertex;
 use crate::refraction::search::RefractionField;
 use crate::refraction::split::{Side, WaterVolume};
@@ -47,7 +48,8 @@ pub struct LocatedPoint {
     pub images: Vec<LocatedImage>,
 }
 
-/// Every image of each of `points` at `frame`, with [`RenderJob::method`]'s cells.
+/// Every image of each of `points` at `frame`, with [`RenderJob::method`]'s cells (for
+/// [`Method::Exact`]: the exact images Newton reaches from them, as a render draws them).
 pub fn locate(
     job: &RenderJob,
     frame: u32,
@@ -84,6 +86,31 @@ pub fn locate(
                 };
             }
             field.images(point, scratch);
+            if job.method == Method::Exact {
+                // The exact method's images: one Newton solve from each linear one, as a render.
+                let mut exact = Vec::new();
+                exact_images(&field, point_f64, scratch, &mut exact);
+                return LocatedPoint {
+                    point,
+                    place: PointPlace::Under,
+                    images: exact
+                        .iter()
+                        .map(|image| LocatedImage {
+                            virtual_vertex: virtual_vertex(
+                                eye,
+                                image.sight_point,
+                                point_f64,
+                                n_above,
+                                n_below,
+                            )
+                            .as_vec3(),
+                            sight_point: image.sight_point.as_vec3(),
+                            facet: image.facet,
+                            extrapolated: image.extrapolated,
+                        })
+                        .collect(),
+                };
+            }
             let images = scratch
                 .iter()
                 .map(|image| LocatedImage {
