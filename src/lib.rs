@@ -14,11 +14,15 @@
 //! [`check`] compares frames (EXR files, or a scene's renders against goldens) for CI: FLIP,
 //! Z/P tolerances, exact flag counts, JUnit.
 //!
+//! [`chart`] measures speed against accuracy: every method and membrane resolution timed and
+//! compared with the ray-traced reference (`snell chart`), and a scene's `max_error_px` budget.
+//!
 //! [`frame`] ties the stages together: one `render_frame` entry point used identically by the CLI
 //! and by the tests. [`interrupt`] turns Ctrl-C into a stop after the frame in flight.
 
 pub mod camera;
 pub mod character;
+pub mod chart;
 pub mod check;
 pub mod color;
 pub mod draw;
