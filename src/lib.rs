@@ -17,6 +17,9 @@
 //! [`chart`] measures speed against accuracy: every method and membrane resolution timed and
 //! compared with the ray-traced reference (`snell chart`), and a scene's `max_error_px` budget.
 //!
+//! [`tools`] checks snell from outside: every image of given points (`snell locate`), position
+//! error between frames (`snell compare`), a frame's geometry and camera for other tools (`snell export`).
+//!
 //! [`frame`] ties the stages together: one `render_frame` entry point used identically by the CLI
 //! and by the tests. [`interrupt`] turns Ctrl-C into a stop after the frame in flight.
 
@@ -36,6 +39,7 @@ pub mod refraction;
 pub mod scene;
 pub mod sim;
 pub mod timeline;
+pub mod tools;
 pub mod water;
 
 /// The version written into every EXR header and report.
