@@ -9,6 +9,7 @@
 //!    [`sim`]        — the ripples characters make (damped wave equation), stepped and checkpointed.
 //! 3. [`refraction`] — refraction rays, cells, sight-facet search, virtual vertices, flags (pure CPU, rayon).
 //! 4. [`gpu`]        — wgpu passes: true geometry, stencil of visible water, virtual geometry, Fresnel sky.
+//!    [`reference`]  — the ray-traced reference over the same stage-2 output (CPU, rayon): `--method raytrace`.
 //! 5. [`output`]     — multi-layer OpenEXR frames, per-frame report, tone-mapped previews, image comparison.
 //!
 //! [`check`] compares frames (EXR files, or a scene's renders against goldens) for CI: FLIP,
@@ -35,6 +36,7 @@ pub mod interrupt;
 pub mod mesh;
 pub mod output;
 pub mod preview;
+pub mod reference;
 pub mod refraction;
 pub mod scene;
 pub mod sim;

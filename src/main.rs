@@ -55,6 +55,11 @@ enum Command {
         png: bool,
         /// How under-water geometry is placed: equal-t (refraction cells without gaps or
         /// overlaps, the default) or thesis-plane (the thesis's plane-test cells, for comparison).
+        /// Or trace the frame on the CPU instead (no GPU needed): raytrace, the reference (the
+        /// exact wave surface by root finding, refracted rays through a BVH, the same shading),
+        /// or raytrace-membrane (the same tracer through the triangulated membrane with
+        /// interpolated normals, the surface the rasteriser draws). The ray-traced methods have
+        /// no virtual vertices: their flag counts are all 0 and the flag layers empty.
         #[arg(long, default_value = "equal-t", value_name = "METHOD")]
         method: String,
         /// Keep frames already complete from the same inputs and render only the rest. A frame is
