@@ -54,7 +54,10 @@ enum Command {
         #[arg(long)]
         png: bool,
         /// How under-water geometry is placed: equal-t (refraction cells without gaps or
-        /// overlaps, the default) or thesis-plane (the thesis's plane-test cells, for comparison).
+        /// overlaps, the default), thesis-plane (the thesis's plane-test cells, for comparison) or
+        /// exact (Newton on Fermat's principle from each equal-t image, exact to ~1e-12, with
+        /// adaptive subdivision of under-water triangles; vertices where Newton fails are drawn
+        /// at the equal-t point and counted as newton_fallback in the report).
         /// Or trace the frame on the CPU instead (no GPU needed): raytrace, the reference (the
         /// exact wave surface by root finding, refracted rays through a BVH, the same shading),
         /// or raytrace-membrane (the same tracer through the triangulated membrane with
@@ -62,6 +65,12 @@ enum Command {
         /// no virtual vertices: their flag counts are all 0 and the flag layers empty.
         #[arg(long, default_value = "equal-t", value_name = "METHOD")]
         method: String,
+        /// --method exact only: split an under-water edge (recursively, at most 4 levels) while
+        /// the exact image of its midpoint is farther than this many pixels from the straight
+        /// virtual edge. Smaller is more accurate and slower; the report counts the triangles
+        /// subdivided.
+        #[arg(long, value_name = "PX", default_value_t = snell::refraction::subdivision::DEFAULT_TOLERANCE_PX)]
+        subdivision_px: f32,
         /// Keep frames already complete from the same inputs and render only the rest. A frame is
         /// kept when its EXR reads back whole and its header's input hash (of the scene file,
         /// every file it references, the size and the method) and its report row match this
@@ -188,8 +197,17 @@ fn main() -> ExitCode {
             size,
             png,
             method,
+            subdivision_px,
             resume,
-        } => render(&scene, frames.as_deref(), out, &size, png, &method, resume),
+        } => render(
+            &scene,
+            frames.as_deref(),
+            out,
+            &size,
+            png,
+            (&method, subdivision_px),
+            resume,
+        ),
         Command::Preview {
             scene,
             port,
@@ -243,21 +261,32 @@ fn render(
     out: Option<PathBuf>,
     size: &str,
     png: bool,
-    method: &str,
+    (method, subdivision_px): (&str, f32),
     resume: bool,
 ) -> Result<(), SnellError> {
     let (width, height) = frame::parse_size(size)?;
     let method =
         Method::parse(method).map_err(|e| SnellError::Argument(format!("--method: {e}")))?;
+    if !(subdivision_px.is_finite() && subdivision_px > 0.0) {
+        return Err(SnellError::Argument(format!(
+            "--subdivision-px {subdivision_px}: expected a number of pixels > 0, e.g. --subdivision-px 0.25"
+        )));
+    }
     let mut job = RenderJob::prepare(scene_path)?;
     job.method = method;
+    job.subdivision.tolerance_px = subdivision_px;
     let range = match frames {
         Some(text) => FrameRange::parse(text, job.timeline())?,
         None => FrameRange::whole(job.timeline()),
     };
     let out_dir = out.unwrap_or_else(|| PathBuf::from("output").join(job.scene_name()));
-    let resume_command =
+    let mut resume_command =
         resume_command_line(scene_path, frames, &out_dir, width, height, png, method);
+    if method == Method::Exact
+        && subdivision_px != snell::refraction::subdivision::DEFAULT_TOLERANCE_PX
+    {
+        resume_command.push_str(&format!(" --subdivision-px {subdivision_px}"));
+    }
     let stop = match snell::interrupt::install(resume_command.clone()) {
         Ok(flag) => Some(flag),
         Err(error) => {

@@ -17,6 +17,7 @@ pub struct BenchFigures {
     pub frame: FrameFigures,
     pub characters: CharacterFigures,
     pub reference: ReferenceFigures,
+    pub exact: ExactFigures,
 }
 
 /// The ray-traced reference (`--method raytrace`, CPU) on the frame-time scene at 1280x720.
@@ -63,6 +64,80 @@ impl ReferenceFigures {
             self.surface_evaluations_per_refracted_ray,
         )
     }
+}
+
+/// The exact method's CPU cost beside the equal-t method's, on the frame-time scene at 1280x720:
+/// the refraction stage (search, Newton, subdivision, virtual geometry), no GPU.
+#[derive(Debug, Serialize)]
+pub struct ExactFigures {
+    pub scene: String,
+    pub size: [u32; 2],
+    pub frames_measured: u32,
+    /// Median refraction-stage milliseconds per frame, equal-t method.
+    pub equal_t_refraction_ms: f64,
+    /// The same for the exact method (default subdivision settings).
+    pub exact_refraction_ms: f64,
+    /// Median per frame, exact method: triangles subdivided, and vertices whose Newton solve
+    /// failed (drawn at the linear point).
+    pub subdivided_triangles: f64,
+    pub newton_fallback_vertices: f64,
+}
+
+impl ExactFigures {
+    fn to_text(&self) -> String {
+        format!(
+            "refraction stage of {} at {}x{} (median of {} frames): equal-t {:.2} ms, exact {:.2} ms \
+             ({:.1}x; {:.0} triangles subdivided, {:.0} Newton fallbacks per frame)\n",
+            self.scene,
+            self.size[0],
+            self.size[1],
+            self.frames_measured,
+            self.equal_t_refraction_ms,
+            self.exact_refraction_ms,
+            self.exact_refraction_ms / self.equal_t_refraction_ms,
+            self.subdivided_triangles,
+            self.newton_fallback_vertices,
+        )
+    }
+}
+
+/// Refraction-stage times of the equal-t and exact methods, frame by frame in sequence from the
+/// first frame (after one warm-up frame each). CPU only.
+fn exact_times(scene_path: &Path, frames: u32) -> Result<ExactFigures, SnellError> {
+    let (width, height) = (1280, 720);
+    let mut job = RenderJob::prepare(scene_path)?;
+    let timeline = *job.timeline();
+    let frames = frames
+        .max(1)
+        .min(timeline.last_frame - timeline.first_frame + 1);
+    let measure = |job: &RenderJob| -> Result<(Vec<f64>, Vec<f64>, Vec<f64>), SnellError> {
+        let (mut ms, mut subdivided, mut fallbacks) = (Vec::new(), Vec::new(), Vec::new());
+        let mut previous = None;
+        for (i, frame) in (timeline.first_frame..timeline.first_frame + frames + 1).enumerate() {
+            let frame = frame.min(timeline.last_frame);
+            let refracted = job.refract(frame, width, height, previous.as_ref())?;
+            if i > 0 {
+                ms.push(refracted.stage_secs["refraction"] * 1e3);
+                subdivided.push(refracted.counts.triangles.subdivided as f64);
+                fallbacks.push(refracted.counts.vertices.newton_fallback as f64);
+            }
+            previous = Some(refracted.tracking);
+        }
+        Ok((ms, subdivided, fallbacks))
+    };
+    job.method = super::Method::EqualT;
+    let (mut equal_t, _, _) = measure(&job)?;
+    job.method = super::Method::Exact;
+    let (mut exact, mut subdivided, mut fallbacks) = measure(&job)?;
+    Ok(ExactFigures {
+        scene: job.scene_name().to_string(),
+        size: [width, height],
+        frames_measured: frames,
+        equal_t_refraction_ms: median(&mut equal_t),
+        exact_refraction_ms: median(&mut exact),
+        subdivided_triangles: median(&mut subdivided),
+        newton_fallback_vertices: median(&mut fallbacks),
+    })
 }
 
 /// Skinning and ripples: their throughput, and their share of a character scene's frame.
@@ -128,7 +203,7 @@ impl BenchFigures {
              ripples: {:.0} steps/s on a 256x256 grid\n\
              {}\
              skinning + ripples: {:.1} % of the {} frame\n\
-             {}",
+             {}{}",
             self.refraction.vertices_per_sec / 1e6,
             self.refraction.scenario,
             self.refraction.speedup_vs_brute_force,
@@ -139,6 +214,7 @@ impl BenchFigures {
             100.0 * characters.skinning_and_ripples_share,
             characters.frame.scene,
             self.reference.to_text(),
+            self.exact.to_text(),
         )
     }
 }
@@ -214,6 +290,7 @@ pub fn run(
         dynamics_ms / (dynamics_ms + stage("water") + stage("refraction") + stage("render"));
     let (skinning, ripple_steps) = character_throughput(fox_path)?;
     let reference = reference_figures(scene_path, frames)?;
+    let exact = exact_times(scene_path, frames)?;
     Ok(BenchFigures {
         refraction,
         frame,
@@ -224,6 +301,7 @@ pub fn run(
             frame: characters_frame,
             skinning_and_ripples_share: share,
         },
+        exact,
     })
 }
 

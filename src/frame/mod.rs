@@ -21,8 +21,9 @@ use crate::output::OutputError;
 use crate::refraction::flags::TrackingState as VertexTracking;
 use crate::refraction::flags::{FlagCounts, CONVERGENCE_POLICY};
 use crate::refraction::search::{CellMode, RefractionField, RefractionSetup};
+use crate::refraction::subdivision::SubdivisionSettings;
 use crate::refraction::virtual_geometry::{
-    build_virtual_geometry, ImageSearch, VirtualGeometryRequest,
+    build_virtual_geometry_with, ImageSearch, Placement, VirtualGeometryRequest,
 };
 use crate::scene::{Scene, SceneError};
 use crate::sim::SumHeightField;
@@ -175,6 +176,9 @@ pub enum Method {
     EqualT,
     /// The thesis's per-facet plane test, kept for comparison (gaps and overlaps between cells).
     ThesisPlane,
+    /// Exact virtual vertices: from each equal-t image's sight point, Newton on Fermat's principle
+    /// over the exact surface (ALGORITHM §6), with adaptive subdivision of under-water triangles.
+    Exact,
     /// The ray-traced reference on the CPU through the exact surface (no virtual geometry).
     Raytrace,
     /// The ray-traced reference through the triangulated membrane with interpolated normals.
@@ -182,9 +186,10 @@ pub enum Method {
 }
 
 impl Method {
-    pub const ALL: [Method; 4] = [
+    pub const ALL: [Method; 5] = [
         Method::EqualT,
         Method::ThesisPlane,
+        Method::Exact,
         Method::Raytrace,
         Method::RaytraceMembrane,
     ];
@@ -194,6 +199,7 @@ impl Method {
         match self {
             Method::EqualT => "equal-t",
             Method::ThesisPlane => "thesis-plane",
+            Method::Exact => "exact",
             Method::Raytrace => "raytrace",
             Method::RaytraceMembrane => "raytrace-membrane",
         }
@@ -204,6 +210,7 @@ impl Method {
         match self {
             Method::EqualT => "virtual-vertices/equal-t",
             Method::ThesisPlane => "virtual-vertices/thesis-plane",
+            Method::Exact => "virtual-vertices/exact",
             Method::Raytrace => "raytrace/exact-surface",
             Method::RaytraceMembrane => "raytrace/membrane",
         }
@@ -215,6 +222,9 @@ impl Method {
             Method::EqualT => "virtual vertices through equal-t refraction cells (exact cell boundaries)",
             Method::ThesisPlane => {
                 "virtual vertices through the thesis's plane-test cells (gaps and overlaps between cells)"
+            }
+            Method::Exact => {
+                "exact virtual vertices (Newton on Fermat's principle from each equal-t image) with adaptive subdivision"
             }
             Method::Raytrace => {
                 "CPU ray-traced reference through the exact wave surface (no virtual vertices: flag counts are 0)"
@@ -228,7 +238,7 @@ impl Method {
     /// The water the ray-traced methods meet; `None` for the virtual-vertex methods (GPU).
     pub fn traced_water(self) -> Option<crate::reference::WaterModel> {
         match self {
-            Method::EqualT | Method::ThesisPlane => None,
+            Method::EqualT | Method::ThesisPlane | Method::Exact => None,
             Method::Raytrace => Some(crate::reference::WaterModel::Exact),
             Method::RaytraceMembrane => Some(crate::reference::WaterModel::Membrane),
         }
@@ -259,6 +269,20 @@ impl Method {
             Method::ThesisPlane => CellMode::Thesis,
             // Never asked: the ray-traced methods build no refraction field.
             Method::Raytrace | Method::RaytraceMembrane => CellMode::EqualT,
+            Method::Exact => CellMode::EqualT,
+        }
+    }
+
+    /// Where the method puts under-water vertices (the subdivision settings apply to
+    /// [`Method::Exact`] only).
+    fn placement(self, subdivision: SubdivisionSettings) -> Placement {
+        match self {
+            // The ray-traced methods are never asked: they place no vertices.
+            Method::EqualT
+            | Method::ThesisPlane
+            | Method::Raytrace
+            | Method::RaytraceMembrane => Placement::Linear,
+            Method::Exact => Placement::Exact(subdivision),
         }
     }
 }
@@ -274,6 +298,8 @@ pub struct RenderJob {
     pub dynamics: characters::Dynamics,
     /// How under-water geometry is placed ([`Method::EqualT`] unless set).
     pub method: Method,
+    /// How finely [`Method::Exact`] subdivides under-water triangles (ignored by the others).
+    pub subdivision: SubdivisionSettings,
     /// Heights the refraction search must cover for the static objects (characters and ripples
     /// widen it per frame).
     query_y_range: (f32, f32),
@@ -321,6 +347,7 @@ impl RenderJob {
             camera_track,
             dynamics,
             method: Method::default(),
+            subdivision: SubdivisionSettings::default(),
             query_y_range: (bottom, top),
             traced_textures: std::sync::OnceLock::new(),
             scene_files,
@@ -335,7 +362,17 @@ impl RenderJob {
     /// The hash of everything a frame of this job at `width` x `height` is made from: the scene's
     /// files as loaded, the size, [`Self::method_label`] and snell's version.
     pub fn input_hash(&self, width: u32, height: u32) -> inputs::InputHash {
-        inputs::input_hash(&self.scene_files, width, height, self.method_label())
+        // The exact method's output depends on its subdivision settings too.
+        let method = match self.method {
+            Method::Exact => format!(
+                "{} tolerance_px={} max_depth={}",
+                self.method_label(),
+                self.subdivision.tolerance_px,
+                self.subdivision.max_depth
+            ),
+            _ => self.method_label().to_string(),
+        };
+        inputs::input_hash(&self.scene_files, width, height, &method)
     }
 
     /// Reads and writes simulation checkpoints under `out_dir` from now on (a note when stale
@@ -497,7 +534,8 @@ impl RenderJob {
             mean_level_m: self.waves.level_m as f32,
             search: ImageSearch::Accelerated,
         };
-        let geometry = build_virtual_geometry(&request, previous);
+        let placement = self.method.placement(self.subdivision);
+        let geometry = build_virtual_geometry_with(&request, previous, placement);
         stage_secs.insert("refraction".to_string(), clock.elapsed().as_secs_f64());
 
         let draw = FrameDraw {

@@ -35,6 +35,11 @@ pub struct VertexFlagCounts {
     pub convergence: u64,
     /// Whose image popped since the previous frame.
     pub popping: u64,
+    /// Exact method only: with an image whose Newton solve failed, drawn at the linear cell's
+    /// sight point instead. Left out of the report when zero, so the linear methods' reports (and
+    /// their goldens) are unchanged.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub newton_fallback: u64,
 }
 
 /// Triangle counts of one frame, over the under-water parts after splitting at the surface.
@@ -49,6 +54,16 @@ pub struct TriangleFlagCounts {
     pub convergence: u64,
     pub extrapolated: u64,
     pub popping: u64,
+    /// Exact method only: under-water triangles the adaptive subdivision split (thesis §4.7)...
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub subdivided: u64,
+    /// ...and how many triangles they were drawn as. Both left out of the report when zero.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub subdivision_pieces: u64,
+}
+
+fn is_zero(count: &u64) -> bool {
+    *count == 0
 }
 
 /// The flag counts of one frame (the report's `flags` object).

@@ -10,16 +10,20 @@
 //! the frame's inputs. That is what lets a frame rendered alone recompute frame t-1's tracking state
 //! with [`tracking_state`] and get what a sequential render would have carried over.
 
-use glam::Vec3;
+use glam::{DVec2, Vec3};
 use rayon::prelude::*;
 
 use crate::camera::Camera;
 use crate::draw::{flag_bits, TrueVertex, VirtualVertex};
 use crate::mesh::Object;
+use crate::refraction::exact::{exact_images, ExactImage};
 use crate::refraction::flags::{vertex_pops, FlagCounts, TrackedVertex, TrackingState};
 use crate::refraction::flat::{flat_virtual_vertex, virtual_vertex};
 use crate::refraction::search::{Image, RefractionField};
 use crate::refraction::split::{split_mesh, Side, SplitMesh, WaterVolume};
+use crate::refraction::subdivision::{
+    Subdivider, SubdivisionSettings, SubdivisionStats, SubdivisionVertex,
+};
 use crate::water::Membrane;
 
 /// Which sight-facet search answers the queries: the accelerated one for rendering, the brute-force
@@ -29,6 +33,18 @@ pub enum ImageSearch {
     #[default]
     Accelerated,
     BruteForce,
+}
+
+/// Where under-water vertices are placed: at the linear cells' sight points (the cell methods), or
+/// at exact sight points (Fermat's principle, ALGORITHM §6) with adaptive subdivision.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum Placement {
+    #[default]
+    Linear,
+    /// From each linear image's sight point, Newton on the exact surface; every valid stationary
+    /// point is an image; failed solves fall back to the linear image (counted as
+    /// `newton_fallback`); under-water triangles are subdivided as `SubdivisionSettings` says.
+    Exact(SubdivisionSettings),
 }
 
 /// One frame's inputs to the virtual geometry.
@@ -140,6 +156,52 @@ pub fn vertex_images(
     }
 }
 
+/// [`vertex_images`] for the exact method: the linear images (into `scratch`), then one Newton
+/// solve from each ([`exact_images`], into `exact`); the drawn image is chosen by the same policy
+/// (least optical path, then lowest facet index). Returns the images and the chosen exact image.
+pub fn exact_vertex_images(
+    field: &RefractionField,
+    point: Vec3,
+    search: ImageSearch,
+    scratch: &mut Vec<Image>,
+    exact: &mut Vec<ExactImage>,
+) -> (VertexImages, Option<ExactImage>) {
+    match search {
+        ImageSearch::Accelerated => field.images(point, scratch),
+        ImageSearch::BruteForce => field.images_brute_force(point, scratch),
+    }
+    let point_f64 = point.as_dvec3();
+    exact_images(field, point_f64, scratch, exact);
+    let eye = field.setup.eye.as_dvec3();
+    let (n_above, n_below) = (field.setup.n_above as f64, field.setup.n_below as f64);
+    let optical_path = |image: &ExactImage| {
+        let s = image.sight_point;
+        n_above * (s - eye).length() + n_below * (point_f64 - s).length()
+    };
+    let best = exact
+        .iter()
+        .min_by(|a, b| {
+            optical_path(a)
+                .total_cmp(&optical_path(b))
+                .then(a.facet.cmp(&b.facet))
+        })
+        .copied();
+    let images = VertexImages {
+        image_count: exact.len() as u32,
+        chosen: best.map(|image| {
+            let s = image.sight_point;
+            ChosenImage {
+                facet: image.facet,
+                sight_point: s.as_vec3(),
+                virtual_position: virtual_vertex(eye, s, point_f64, n_above, n_below).as_vec3(),
+                water_path_m: (point_f64 - s).length() as f32,
+                extrapolated: image.extrapolated,
+            }
+        }),
+    };
+    (images, best)
+}
+
 /// An under-water vertex after the query: where it is drawn and how it is flagged.
 #[derive(Clone, Copy, Debug)]
 struct ResolvedVertex {
@@ -148,6 +210,10 @@ struct ResolvedVertex {
     drawn_position: Vec3,
     water_path_m: f32,
     pops: bool,
+    /// Exact method: the chosen image is a linear one because Newton failed.
+    newton_fallback: bool,
+    /// Exact method: the chosen exact sight point's (x, z), for the subdivision's solves.
+    exact_sight_xz: Option<DVec2>,
 }
 
 /// Builds the frame's geometry, flags and tracking state. `previous` is frame t-1's tracking state
@@ -156,6 +222,15 @@ struct ResolvedVertex {
 pub fn build_virtual_geometry(
     request: &VirtualGeometryRequest,
     previous: Option<&TrackingState>,
+) -> VirtualGeometry {
+    build_virtual_geometry_with(request, previous, Placement::Linear)
+}
+
+/// [`build_virtual_geometry`] with the vertices placed as `placement` says.
+pub fn build_virtual_geometry_with(
+    request: &VirtualGeometryRequest,
+    previous: Option<&TrackingState>,
+    placement: Placement,
 ) -> VirtualGeometry {
     let field = request.field;
     let membrane = field.membrane;
@@ -188,46 +263,62 @@ pub fn build_virtual_geometry(
     let previous = previous.filter(|p| p.is_comparable(&membrane.grid, request.image_size));
     let answers: Vec<(ResolvedVertex, TrackedVertex)> = queries
         .par_iter()
-        .map_init(Vec::new, |scratch, &(object, vertex)| {
-            let split = &splits[object as usize];
-            let point = split.vertices[vertex as usize].position;
-            let images = vertex_images(field, point, request.search, scratch);
-            let (drawn_position, water_path_m) = match images.chosen {
-                Some(chosen) => (chosen.virtual_position, chosen.water_path_m),
-                None => {
-                    let (position, path_m) = flat_virtual_vertex(
-                        eye,
-                        point.as_dvec3(),
-                        request.mean_level_m as f64,
-                        n_above,
-                        n_below,
-                    );
-                    (position.as_vec3(), path_m as f32)
-                }
-            };
-            let pixel = request.camera.pixel_of(drawn_position, width, height);
-            let tracked = match images.chosen {
-                Some(chosen) => TrackedVertex::Seen {
-                    facet: chosen.facet,
-                    pixel,
-                },
-                None => TrackedVertex::Unseen { pixel },
-            };
-            // Only the mesh's own vertices are tracked: crossings are created per frame.
-            let pops = (vertex as usize) < split.original_vertex_count
-                && previous
-                    .and_then(|p| p.vertex(object as usize, vertex as usize))
-                    .is_some_and(|before| vertex_pops(before, tracked, &membrane.triangles));
-            (
-                ResolvedVertex {
-                    images,
-                    drawn_position,
-                    water_path_m,
-                    pops,
-                },
-                tracked,
-            )
-        })
+        .map_init(
+            || (Vec::new(), Vec::new()),
+            |(scratch, exact), &(object, vertex)| {
+                let split = &splits[object as usize];
+                let point = split.vertices[vertex as usize].position;
+                let (images, chosen_exact) = match placement {
+                    Placement::Linear => {
+                        (vertex_images(field, point, request.search, scratch), None)
+                    }
+                    Placement::Exact(_) => {
+                        exact_vertex_images(field, point, request.search, scratch, exact)
+                    }
+                };
+                let newton_fallback = chosen_exact.is_some_and(|c| c.newton_fallback);
+                let exact_sight_xz = chosen_exact
+                    .filter(|c| !c.newton_fallback)
+                    .map(|c| DVec2::new(c.sight_point.x, c.sight_point.z));
+                let (drawn_position, water_path_m) = match images.chosen {
+                    Some(chosen) => (chosen.virtual_position, chosen.water_path_m),
+                    None => {
+                        let (position, path_m) = flat_virtual_vertex(
+                            eye,
+                            point.as_dvec3(),
+                            request.mean_level_m as f64,
+                            n_above,
+                            n_below,
+                        );
+                        (position.as_vec3(), path_m as f32)
+                    }
+                };
+                let pixel = request.camera.pixel_of(drawn_position, width, height);
+                let tracked = match images.chosen {
+                    Some(chosen) => TrackedVertex::Seen {
+                        facet: chosen.facet,
+                        pixel,
+                    },
+                    None => TrackedVertex::Unseen { pixel },
+                };
+                // Only the mesh's own vertices are tracked: crossings are created per frame.
+                let pops = (vertex as usize) < split.original_vertex_count
+                    && previous
+                        .and_then(|p| p.vertex(object as usize, vertex as usize))
+                        .is_some_and(|before| vertex_pops(before, tracked, &membrane.triangles));
+                (
+                    ResolvedVertex {
+                        images,
+                        drawn_position,
+                        water_path_m,
+                        pops,
+                        newton_fallback,
+                        exact_sight_xz,
+                    },
+                    tracked,
+                )
+            },
+        )
         .collect();
 
     let mut counts = FlagCounts::default();
@@ -252,11 +343,21 @@ pub fn build_virtual_geometry(
         vertex_counts.extrapolated +=
             u64::from(answer.images.chosen.is_some_and(|c| c.extrapolated));
         vertex_counts.popping += u64::from(answer.pops);
+        vertex_counts.newton_fallback += u64::from(answer.newton_fallback);
     }
 
     let mut above_vertices = Vec::new();
     let mut above_indices = Vec::new();
     let mut under_vertices = Vec::new();
+    let subdivider = match placement {
+        Placement::Linear => None,
+        Placement::Exact(settings) => Some(Subdivider {
+            field,
+            camera: request.camera,
+            image_size: request.image_size,
+            settings,
+        }),
+    };
     for (object, split) in splits.iter().enumerate() {
         append_above(
             object as u32,
@@ -268,6 +369,7 @@ pub fn build_virtual_geometry(
             object as u32,
             split,
             &resolved[object],
+            subdivider.as_ref(),
             &mut under_vertices,
             &mut counts,
         );
@@ -320,9 +422,12 @@ fn append_under(
     object: u32,
     split: &SplitMesh,
     resolved: &[Option<ResolvedVertex>],
+    subdivider: Option<&Subdivider>,
     out: &mut Vec<VirtualVertex>,
     counts: &mut FlagCounts,
 ) {
+    // Drawn triangles with their flags, before any subdivision.
+    let mut drawn: Vec<([SubdivisionVertex; 3], u32)> = Vec::new();
     for triangle in &split.below_triangles {
         counts.triangles.under_water += 1;
         let mut under_water = 0;
@@ -356,22 +461,66 @@ fn append_under(
         triangle_counts.convergence += u64::from(flags & flag_bits::CONVERGENCE != 0);
         triangle_counts.extrapolated += u64::from(flags & flag_bits::EXTRAPOLATED != 0);
         triangle_counts.popping += u64::from(flags & flag_bits::POPPING != 0);
-        for &i in triangle {
+        let corners = triangle.map(|i| {
             let v = split.vertices[i as usize];
-            // A surface vertex is its own virtual vertex: V' = V, no water on its path.
-            let (virtual_position, water_path_m) = match resolved[i as usize] {
-                Some(r) => (r.drawn_position, r.water_path_m),
-                None => (v.position, 0.0),
+            // A surface vertex is its own virtual vertex: V' = V, no water on its path (and its
+            // own exact sight point).
+            let (virtual_position, water_path_m, sight_xz) = match resolved[i as usize] {
+                Some(r) => (r.drawn_position, r.water_path_m, r.exact_sight_xz),
+                None => (
+                    v.position,
+                    0.0,
+                    Some(DVec2::new(v.position.x as f64, v.position.z as f64)),
+                ),
             };
+            SubdivisionVertex {
+                position: v.position,
+                normal: v.normal,
+                uv: v.uv,
+                virtual_position,
+                water_path_m,
+                sight_xz,
+                on_surface: v.side == Side::Surface,
+            }
+        });
+        drawn.push((corners, flags));
+    }
+    let mut push = |corners: &[SubdivisionVertex; 3], flags: u32| {
+        for v in corners {
             out.push(VirtualVertex {
-                virtual_position: virtual_position.to_array(),
+                virtual_position: v.virtual_position.to_array(),
                 true_position: v.position.to_array(),
                 normal: v.normal.to_array(),
                 uv: v.uv.to_array(),
                 material: object,
-                water_path_m,
+                water_path_m: v.water_path_m,
                 flags,
             });
+        }
+    };
+    let Some(subdivider) = subdivider else {
+        for (corners, flags) in &drawn {
+            push(corners, *flags);
+        }
+        return;
+    };
+    // Each triangle's subdivision is a function of its own edges: in parallel, output in order.
+    // The pieces keep the triangle's flags.
+    let pieces: Vec<(Vec<[SubdivisionVertex; 3]>, SubdivisionStats)> = drawn
+        .par_iter()
+        .map(|(corners, _)| {
+            let mut pieces = Vec::new();
+            let stats = subdivider.subdivide(*corners, &mut pieces);
+            (pieces, stats)
+        })
+        .collect();
+    for ((_, flags), (triangles, stats)) in drawn.iter().zip(&pieces) {
+        if stats.pieces > 1 {
+            counts.triangles.subdivided += 1;
+            counts.triangles.subdivision_pieces += u64::from(stats.pieces);
+        }
+        for corners in triangles {
+            push(corners, *flags);
         }
     }
 }
