@@ -28,7 +28,7 @@ pub struct ChartPoint {
 #[derive(Clone, Debug, PartialEq)]
 pub struct ChartInput {
     pub title: String,
-    /// A second line under the title: what was measured, where.
+    /// Lines under the title (at most two are shown): what was measured, where.
     pub caption: String,
     pub points: Vec<ChartPoint>,
     /// The ray-traced reference: its label and seconds per frame. Its error is zero by definition,
@@ -142,7 +142,8 @@ fn draw<DB: DrawingBackend>(
         drawable
             .iter()
             .map(|p| p.mean_px)
-            .chain(input.error_target.iter().map(|t| t.1)),
+            // Room right of the target's line for its label.
+            .chain(input.error_target.iter().map(|t| t.1 * 3.0)),
         (0.01, 10.0),
     );
     let y_range = decade_range(
@@ -154,7 +155,7 @@ fn draw<DB: DrawingBackend>(
         (0.01, 10.0),
     );
 
-    let (title_area, rest) = root.split_vertically(70);
+    let (title_area, rest) = root.split_vertically(96);
     title_area
         .draw(&Text::new(
             input.title.clone(),
@@ -162,13 +163,29 @@ fn draw<DB: DrawingBackend>(
             (FONT_FAMILY, 26).into_font(),
         ))
         .map_err(fail)?;
-    title_area
-        .draw(&Text::new(
-            input.caption.clone(),
-            (20, 44),
-            (FONT_FAMILY, 15).into_font().color(&RGBColor(80, 80, 80)),
-        ))
-        .map_err(fail)?;
+    let mut caption_lines: Vec<String> = input.caption.lines().map(str::to_string).collect();
+    let hidden: Vec<&str> = input
+        .points
+        .iter()
+        .filter(|p| !drawable.iter().any(|d| std::ptr::eq(*d, *p)))
+        .map(|p| p.label.as_str())
+        .collect();
+    if !hidden.is_empty() {
+        // A log axis has no place for an error of 0 (or a failed measurement): say so.
+        caption_lines.push(format!(
+            "not drawn (error or time 0 or not finite): {}",
+            hidden.join(", ")
+        ));
+    }
+    for (index, line) in caption_lines.iter().take(3).enumerate() {
+        title_area
+            .draw(&Text::new(
+                line.clone(),
+                (20, 42 + 18 * index as i32),
+                (FONT_FAMILY, 15).into_font().color(&RGBColor(80, 80, 80)),
+            ))
+            .map_err(fail)?;
+    }
 
     let mut chart = ChartBuilder::on(&rest)
         .margin(20)
@@ -218,7 +235,7 @@ fn draw<DB: DrawingBackend>(
         chart
             .draw_series(std::iter::once(Text::new(
                 label.clone(),
-                (*error * 1.08, y_range.1 / 1.5),
+                (*error * 1.08, y_range.0 * 1.25),
                 (FONT_FAMILY, 14).into_font().color(&TARGET_COLOUR),
             )))
             .map_err(fail)?;

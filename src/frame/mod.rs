@@ -278,10 +278,9 @@ impl Method {
     fn placement(self, subdivision: SubdivisionSettings) -> Placement {
         match self {
             // The ray-traced methods are never asked: they place no vertices.
-            Method::EqualT
-            | Method::ThesisPlane
-            | Method::Raytrace
-            | Method::RaytraceMembrane => Placement::Linear,
+            Method::EqualT | Method::ThesisPlane | Method::Raytrace | Method::RaytraceMembrane => {
+                Placement::Linear
+            }
             Method::Exact => Placement::Exact(subdivision),
         }
     }
@@ -300,6 +299,9 @@ pub struct RenderJob {
     pub method: Method,
     /// How finely [`Method::Exact`] subdivides under-water triangles (ignored by the others).
     pub subdivision: SubdivisionSettings,
+    /// Set when the scene's `max_error_px` chose the method and membrane resolution
+    /// ([`crate::chart::budget::apply_budget`]); reported in EXR headers and report rows.
+    pub quality_choice: Option<crate::chart::budget::QualityChoice>,
     /// Heights the refraction search must cover for the static objects (characters and ripples
     /// widen it per frame).
     query_y_range: (f32, f32),
@@ -348,6 +350,7 @@ impl RenderJob {
             dynamics,
             method: Method::default(),
             subdivision: SubdivisionSettings::default(),
+            quality_choice: None,
             query_y_range: (bottom, top),
             traced_textures: std::sync::OnceLock::new(),
             scene_files,
@@ -373,6 +376,11 @@ impl RenderJob {
             _ => self.method_label().to_string(),
         };
         inputs::input_hash(&self.scene_files, width, height, &method)
+    }
+
+    /// The digest of the scene file and every file it references (as hashed at load).
+    pub fn scene_files_digest(&self) -> inputs::SceneFilesDigest {
+        self.scene_files
     }
 
     /// Reads and writes simulation checkpoints under `out_dir` from now on (a note when stale
@@ -685,7 +693,15 @@ impl RenderJob {
                     self.input_hash(refracted.image_size.0, refracted.image_size.1)
                         .hex(),
                 ),
-            ],
+            ]
+            .into_iter()
+            .chain(self.quality_choice.as_ref().map(|choice| {
+                (
+                    crate::chart::budget::CHOICE_ATTRIBUTE.to_string(),
+                    choice.to_json().to_string(),
+                )
+            }))
+            .collect(),
         }
     }
 
@@ -704,6 +720,7 @@ impl RenderJob {
             size: [width, height],
             method: self.method_label().to_string(),
             input_hash: Some(self.input_hash(width, height).hex()),
+            quality: self.quality_choice.as_ref().map(|choice| choice.to_json()),
         }
     }
 
