@@ -180,7 +180,8 @@ enum Command {
     /// resolutions, time each and measure its position error against the ray-traced reference.
     ///
     /// Renders the frame with the linear method (equal-t) at 32x32, 64x64, 128x128, 256x256 and
-    /// 512x512 membrane cells, the exact method at 32x32, 64x64 and the scene's own resolution,
+    /// 512x512 membrane cells and the scene's own resolution, the exact method at 32x32, 64x64
+    /// and the scene's own resolution,
     /// and the ray-traced reference (exact surface), all in this process on the same renderer.
     /// Seconds per frame: the CPU stages (water, refraction, virtual geometry; the tracer's own
     /// work for the reference) plus the render with readback, wall clock, median of up to 5

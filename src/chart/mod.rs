@@ -77,22 +77,29 @@ impl Configuration {
 }
 
 /// What the chart renders for a scene whose own membrane has `scene_resolution` cells: the linear
-/// method at [`LINEAR_RESOLUTIONS`], the exact method at the scene's resolution and the two
+/// method at [`LINEAR_RESOLUTIONS`] and at the scene's resolution, the exact method at the two
 /// coarsest linear ones (exact vertices move less with the membrane, so coarse membranes are where
-/// it could pay off), then the reference. The reference comes first in the run (everything is
-/// measured against it), last in the file.
+/// it could pay off) and at the scene's resolution, then the reference. Each method's resolutions
+/// go from the fewest cells up. The reference comes first in the run (everything is measured
+/// against it), last in the file.
 pub fn chart_configurations(scene_resolution: [u32; 2]) -> Vec<Configuration> {
     let square = |cells: u32| [cells, cells];
-    let mut configurations: Vec<Configuration> = LINEAR_RESOLUTIONS
-        .iter()
-        .map(|&cells| Configuration {
+    let by_cells = |resolutions: &mut Vec<[u32; 2]>| {
+        resolutions.sort_by_key(|r| (r[0] as u64 * r[1] as u64, r[0]));
+        resolutions.dedup();
+    };
+    let mut linear: Vec<[u32; 2]> = LINEAR_RESOLUTIONS.iter().map(|&n| square(n)).collect();
+    linear.push(scene_resolution);
+    by_cells(&mut linear);
+    let mut exact: Vec<[u32; 2]> = vec![square(32), square(64), scene_resolution];
+    by_cells(&mut exact);
+    let mut configurations: Vec<Configuration> = linear
+        .into_iter()
+        .map(|resolution| Configuration {
             method: Method::EqualT,
-            resolution: square(cells),
+            resolution,
         })
         .collect();
-    let mut exact: Vec<[u32; 2]> = vec![square(32), square(64), scene_resolution];
-    exact.sort_by_key(|r| (r[0] as u64 * r[1] as u64, r[0]));
-    exact.dedup();
     configurations.extend(exact.into_iter().map(|resolution| Configuration {
         method: Method::Exact,
         resolution,
@@ -609,7 +616,14 @@ mod tests {
             .collect();
         assert_eq!(
             linear,
-            [[32, 32], [64, 64], [128, 128], [256, 256], [512, 512]]
+            [
+                [32, 32],
+                [64, 64],
+                [160, 80],
+                [128, 128],
+                [256, 256],
+                [512, 512]
+            ]
         );
         assert!(configurations
             .iter()
@@ -624,6 +638,13 @@ mod tests {
         );
         // A scene whose own membrane is one of the charted ones is not measured twice.
         let configurations = chart_configurations([64, 64]);
+        assert_eq!(
+            configurations
+                .iter()
+                .filter(|c| c.method == Method::EqualT)
+                .count(),
+            5
+        );
         assert_eq!(
             configurations
                 .iter()
