@@ -173,8 +173,10 @@ enum Command {
     /// OBJ: DIR/<scene>.<frame>.obj with one object per scene object (the membrane is `water`),
     /// texture coordinates (OBJ convention, bottom-left origin) and normals. camera.json: eye,
     /// target, up, vertical field of view in degrees, image size, near/far and the view and clip
-    /// matrices. Every file is written atomically. Load the OBJ in Blender or any DCC tool, or
-    /// render it elsewhere with the camera, to check snell's frames.
+    /// matrices. PLY (--format ply): DIR/<scene>.<frame>.<k>_<object>.ply, one ASCII file per
+    /// object, in the same order. Every file is written atomically. Load the OBJ in Blender or any
+    /// DCC tool, or render it elsewhere with the camera, to check snell's frames. Example:
+    /// snell export scenes/pool.toml --frame 24 --out output/pool/export
     Export(snell::tools::cli::ExportArgs),
     /// Chart speed against accuracy: render one frame with every method and several membrane
     /// resolutions, time each and measure its position error against the ray-traced reference.

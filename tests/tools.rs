@@ -358,6 +358,28 @@ fn compare_of_a_frame_with_itself_is_zero_and_bad_input_is_exit_2() {
         2,
         &["fake.exr: cannot be read as a snell EXR frame"],
     );
+    // A frame written before the object layer existed cannot say which object a pixel sees.
+    let (mut old, meta) = snell::output::read_frame_exr(&frame1).unwrap();
+    old.object.clear();
+    let old_path = dir.path().join("old.exr");
+    let old_meta = snell::output::FrameMeta {
+        scene_name: "tiny".into(),
+        frame: meta.frame,
+        time_secs: meta.time_secs,
+        camera: meta.camera,
+        method: meta.method,
+        version: meta.version,
+        extra: vec![],
+    };
+    snell::output::write_frame_exr(&old_path, &old, &old_meta).unwrap();
+    expect_exit(
+        &compare(&frame1, &old_path, &[]),
+        2,
+        &[
+            "old.exr: the frame has no usable object-id layer",
+            "render it again",
+        ],
+    );
     let small = dir.path().join("small");
     render(&scene, &small, "48x27", dir.path());
     expect_exit(
@@ -642,4 +664,37 @@ fn compare_measures_a_known_camera_turn_on_real_renders() {
         "p99 {} vs true {true_p99}",
         measured.p99_px
     );
+}
+
+/// A scene with a character: the exported fox is the fox posed at that frame (and differs from
+/// its pose a few frames later), the water carries its ripples' frame.
+#[test]
+fn export_poses_characters_at_the_frame() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/fox_wading.toml");
+    let out = dir.path().join("fox");
+    expect_exit(&export(&scene, &out, &[], dir.path()), 0, &[]);
+    let obj = parse_obj(&std::fs::read_to_string(out.join("fox_wading.0002.obj")).unwrap());
+    let job = RenderJob::prepare(&scene).unwrap();
+    let mut stage_secs = Default::default();
+    let water = job.frame_water(2, &mut stage_secs).unwrap();
+    let character = water.objects.len() - 1;
+    assert!(
+        water.objects[character].name.starts_with("fox"),
+        "the last object is the posed fox: {}",
+        water.objects[character].name
+    );
+    let start = obj.objects[1 + character].1;
+    let fox = &water.objects[character].mesh.positions;
+    assert_eq!(&obj.vertices[start..start + fox.len()], &fox[..]);
+    let later = job.frame_water(6, &mut stage_secs).unwrap();
+    assert_ne!(
+        &later.objects[character].mesh.positions, fox,
+        "the fox moves: the export is of frame 2's pose"
+    );
+    let mut expected_positions = water.membrane.positions.clone();
+    for object in water.objects.iter() {
+        expected_positions.extend_from_slice(&object.mesh.positions);
+    }
+    assert_eq!(obj.vertices, expected_positions);
 }

@@ -91,53 +91,59 @@ fn prepare(scene: &std::path::Path, method: Option<&str>) -> Result<RenderJob, T
 }
 
 pub fn run_locate(args: &LocateArgs) -> u8 {
-    exit_code((|| {
-        // The points first: a typo there is found without loading the scene.
-        let points = locate::read_points_csv(&args.points)?;
-        let job = prepare(&args.scene, Some(&args.method))?;
-        let located = locate::locate(&job, args.frame, &points)?;
-        let (csv, notes) = locate::format_located(&located);
-        print!("{csv}");
-        for note in notes {
-            eprintln!("note: {note}");
-        }
-        Ok(())
-    })())
+    exit_code(locate_command(args))
+}
+
+fn locate_command(args: &LocateArgs) -> Result<(), ToolError> {
+    // The points first: a typo there is found without loading the scene.
+    let points = locate::read_points_csv(&args.points)?;
+    let job = prepare(&args.scene, Some(&args.method))?;
+    let located = locate::locate(&job, args.frame, &points)?;
+    let (csv, notes) = locate::format_located(&located);
+    print!("{csv}");
+    for note in notes {
+        eprintln!("note: {note}");
+    }
+    Ok(())
 }
 
 pub fn run_compare(args: &CompareArgs) -> u8 {
-    exit_code((|| {
-        let comparison = compare::compare_files(&args.a, &args.b, args.window)?;
-        if args.json {
-            println!(
-                "{}",
-                serde_json::to_string_pretty(&comparison).expect("comparison serialises")
-            );
-        } else {
-            print!("{}", comparison.to_text());
-        }
-        Ok(())
-    })())
+    exit_code(compare_command(args))
+}
+
+fn compare_command(args: &CompareArgs) -> Result<(), ToolError> {
+    let comparison = compare::compare_files(&args.a, &args.b, args.window)?;
+    if args.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&comparison).expect("comparison serialises")
+        );
+    } else {
+        print!("{}", comparison.to_text());
+    }
+    Ok(())
 }
 
 pub fn run_export(args: &ExportArgs) -> u8 {
-    exit_code((|| {
-        let format = export::ExportFormat::parse(&args.format)?;
-        let size = parse_size(&args.size)?;
-        let job = prepare(&args.scene, None)?;
-        let summary = export::export_frame(&job, args.frame, &args.out, format, size)?;
-        for file in &summary.files {
-            println!("{}", file.display());
-        }
-        eprintln!(
-            "exported frame {} of {}: {} objects (water included), {} vertices, {} triangles into {}",
-            args.frame,
-            job.scene_name(),
-            summary.objects,
-            summary.vertices,
-            summary.triangles,
-            args.out.display()
-        );
-        Ok(())
-    })())
+    exit_code(export_command(args))
+}
+
+fn export_command(args: &ExportArgs) -> Result<(), ToolError> {
+    let format = export::ExportFormat::parse(&args.format)?;
+    let size = parse_size(&args.size)?;
+    let job = prepare(&args.scene, None)?;
+    let summary = export::export_frame(&job, args.frame, &args.out, format, size)?;
+    for file in &summary.files {
+        println!("{}", file.display());
+    }
+    eprintln!(
+        "exported frame {} of {}: {} objects (water included), {} vertices, {} triangles into {}",
+        args.frame,
+        job.scene_name(),
+        summary.objects,
+        summary.vertices,
+        summary.triangles,
+        args.out.display()
+    );
+    Ok(())
 }
