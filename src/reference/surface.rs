@@ -98,7 +98,9 @@ impl ExactSurface<'_> {
         if point.y > self.height_range_m.1 + slack_m || !self.covers(point.x, point.z, slack_m) {
             return false;
         }
-        point.y <= self.field.height(point.x, point.z) + slack_m
+        // Under the lowest trough: in the water wherever the field is (pool floors and walls).
+        point.y <= self.height_range_m.0 + slack_m
+            || point.y <= self.field.height(point.x, point.z) + slack_m
     }
 
     /// The first point with `t` in `[t_min, t_max]` where the ray passes from above the surface to

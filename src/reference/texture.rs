@@ -127,7 +127,15 @@ fn bilinear(level: &Level, uv: Vec2) -> Vec3 {
     let (x0, y0) = (x.floor(), y.floor());
     let (fx, fy) = (x - x0, y - y0);
     let (ix, iy) = (x0 as i64, y0 as i64);
-    let at = |i: i64, j: i64| level.texels[(j.rem_euclid(h) * w + i.rem_euclid(w)) as usize];
+    // Power-of-two sides (every built-in texture) wrap with a mask, others by remainder.
+    let wrap = |i: i64, n: i64| {
+        if n & (n - 1) == 0 {
+            i & (n - 1)
+        } else {
+            i.rem_euclid(n)
+        }
+    };
+    let at = |i: i64, j: i64| level.texels[(wrap(j, h) * w + wrap(i, w)) as usize];
     let top = at(ix, iy) * (1.0 - fx) + at(ix + 1, iy) * fx;
     let bottom = at(ix, iy + 1) * (1.0 - fx) + at(ix + 1, iy + 1) * fx;
     top * (1.0 - fy) + bottom * fy
