@@ -33,6 +33,6 @@ fn fs_above(in: AboveVarying) -> Targets {
     out.beauty = vec4<f32>(shade_above(albedo(in.material, in.uv), normal), 1.0);
     let distance_m = length(in.world_position - frame.eye.xyz);
     out.position = vec4<u32>(bitcast<vec3<u32>>(in.world_position), bitcast<u32>(distance_m));
-    out.flags = 0u;
+    out.flags = flags_and_object(0u, in.material);
     return out;
 }

@@ -46,8 +46,16 @@ struct Targets {
     @location(0) beauty: vec4<f32>,
     // xyz: world position bits; w: distance-from-eye bits.
     @location(1) position: vec4<u32>,
+    // Bits 0-7: the flag bits (crate::draw::flag_bits); bits 8-31: object index + 1 (0 = none).
     @location(2) flags: u32,
 };
+
+// The flags target's word for a fragment of object `material` (its index in the frame's object
+// list) with triangle flags `flags`; the CPU splits it again (gpu::OBJECT_SHIFT).
+const OBJECT_SHIFT: u32 = 8u;
+fn flags_and_object(flags: u32, material: u32) -> u32 {
+    return flags | ((material + 1u) << OBJECT_SHIFT);
+}
 
 // A triangle covering the whole viewport at depth `z` (0 near, 1 far), from the vertex index alone.
 fn full_screen_position(vertex_index: u32, z: f32) -> vec4<f32> {

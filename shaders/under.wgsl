@@ -42,6 +42,6 @@ fn fs_under(in: UnderVarying) -> Targets {
     out.beauty = vec4<f32>(colour, 1.0);
     // w is masked off: the distance is the membrane's, written by pass d.
     out.position = vec4<u32>(bitcast<vec3<u32>>(in.true_position), 0u);
-    out.flags = in.flags;
+    out.flags = flags_and_object(in.flags, in.material);
     return out;
 }

@@ -127,4 +127,12 @@ pub struct RenderedFrame {
     pub position: Vec<[f32; 3]>,
     /// [`flag_bits`] of the virtual triangle seen in each pixel, 0 elsewhere.
     pub flags: Vec<u32>,
+    /// Which object each pixel sees (directly or through the water): `k + 1` for the object at
+    /// index `k` of the frame's object list (the order of [`FrameDraw::materials`]: static objects,
+    /// then posed characters), [`NO_OBJECT`] for sky and for water with nothing behind it. Empty
+    /// when read from an EXR written before this layer existed.
+    pub object: Vec<u32>,
 }
+
+/// [`RenderedFrame::object`] where no object is seen.
+pub const NO_OBJECT: u32 = 0;

@@ -354,6 +354,7 @@ fn every_unambiguous_pixel_matches_the_cpu_model() {
         frame.position.len(),
         frame.distance_m.len(),
         frame.flags.len(),
+        frame.object.len(),
     ] {
         assert_eq!(layer_len, pixel_count);
     }
@@ -362,11 +363,12 @@ fn every_unambiguous_pixel_matches_the_cpu_model() {
     for y in 0..HEIGHT {
         for x in 0..WIDTH {
             let at = (y * WIDTH + x) as usize;
-            let (beauty, position, distance, flags) = (
+            let (beauty, position, distance, flags, object) = (
                 frame.beauty_rgba[at],
                 frame.position[at],
                 frame.distance_m[at],
                 frame.flags[at],
+                frame.object[at],
             );
             // Every pixel, ambiguous or not: only the floor's flags or none.
             assert!(
@@ -401,6 +403,7 @@ fn every_unambiguous_pixel_matches_the_cpu_model() {
                     );
                     assert_eq!(distance, f32::INFINITY, "sky pixel ({x},{y})");
                     assert_eq!(flags, 0);
+                    assert_eq!(object, snell::draw::NO_OBJECT, "sky pixel ({x},{y})");
                 }
                 Seen::Wall { t } => {
                     counts[1] += 1;
@@ -417,6 +420,8 @@ fn every_unambiguous_pixel_matches_the_cpu_model() {
                         "wall pixel ({x},{y}) Z {distance} vs {t}"
                     );
                     assert_eq!(flags, 0, "wall pixel ({x},{y})");
+                    // The wall is material 0: object index 0, stored as 1.
+                    assert_eq!(object, 1, "wall pixel ({x},{y})");
                 }
                 Seen::Floor {
                     membrane_t,
@@ -448,6 +453,7 @@ fn every_unambiguous_pixel_matches_the_cpu_model() {
                         "floor ({x},{y}) {position:?} vs {hit}"
                     );
                     assert_eq!(flags, FLOOR_FLAGS, "floor pixel ({x},{y})");
+                    assert_eq!(object, 2, "floor pixel ({x},{y})");
                 }
                 Seen::DeepWater { membrane_t } => {
                     counts[3] += 1;
@@ -459,6 +465,7 @@ fn every_unambiguous_pixel_matches_the_cpu_model() {
                         "deep water ({x},{y}) position {position:?}"
                     );
                     assert_eq!(flags, 0, "deep water pixel ({x},{y})");
+                    assert_eq!(object, snell::draw::NO_OBJECT, "deep water ({x},{y})");
                 }
             }
         }
@@ -502,6 +509,7 @@ fn bits(frame: &RenderedFrame) -> Vec<u32> {
     out.extend(frame.position.iter().flatten().map(|v| v.to_bits()));
     out.extend(frame.distance_m.iter().map(|v| v.to_bits()));
     out.extend(frame.flags.iter().copied());
+    out.extend(frame.object.iter().copied());
     out
 }
 

@@ -808,6 +808,7 @@ mod tests {
                 })
                 .collect(),
             flags: vec![0; pixels],
+            object: vec![1; pixels],
         }
     }
 

@@ -5,7 +5,8 @@
 //!
 //! All passes share one render pass over four attachments — beauty (Rgba32Float, or Rgba16Float
 //! where float32 cannot be rendered/blended), position (Rgba32Uint: float32 bits of the true world
-//! position in xyz and of the eye distance in w, on every backend), flags (R32Uint) and
+//! position in xyz and of the eye distance in w, on every backend), flags (R32Uint: the flag bits,
+//! and above them the object seen) and
 //! depth-stencil — and run as eight draws:
 //! 1. sky (full-screen, far plane), 2. above-water geometry (true positions, depth test),
 //! 3. membrane marks stencil = 1 where visible (no colour), 4. inside the stencil a full-screen
@@ -1109,6 +1110,10 @@ fn word(bytes: &[u8], at: usize) -> u32 {
     u32::from_le_bytes([bytes[at], bytes[at + 1], bytes[at + 2], bytes[at + 3]])
 }
 
+/// The flags target holds the flag bits below this bit and the object index + 1 above it
+/// (`flags_and_object` in shaders/common.inc.wgsl).
+const OBJECT_SHIFT: u32 = 8;
+
 /// Removes the row padding and converts every layer to the CPU types of [`RenderedFrame`].
 fn unpack_frame(bytes: &[u8], targets: &FrameTargets) -> RenderedFrame {
     let (width, height) = (targets.width as usize, targets.height as usize);
@@ -1120,6 +1125,7 @@ fn unpack_frame(bytes: &[u8], targets: &FrameTargets) -> RenderedFrame {
         distance_m: Vec::with_capacity(pixel_count),
         position: Vec::with_capacity(pixel_count),
         flags: Vec::with_capacity(pixel_count),
+        object: Vec::with_capacity(pixel_count),
     };
     let beauty_pitch = padded_bytes_per_row(targets.width, targets.beauty_bytes_per_pixel) as usize;
     let position_pitch = padded_bytes_per_row(targets.width, 16) as usize;
@@ -1149,9 +1155,11 @@ fn unpack_frame(bytes: &[u8], targets: &FrameTargets) -> RenderedFrame {
             frame.distance_m.push(f32::from_bits(word(pixel, 12)));
         }
         let row = &bytes[flags_at + y * flags_pitch..][..width * 4];
-        frame
-            .flags
-            .extend(row.chunks_exact(4).map(|pixel| word(pixel, 0)));
+        for pixel in row.chunks_exact(4) {
+            let packed = word(pixel, 0);
+            frame.flags.push(packed & ((1 << OBJECT_SHIFT) - 1));
+            frame.object.push(packed >> OBJECT_SHIFT);
+        }
     }
     frame
 }

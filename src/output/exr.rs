@@ -1,8 +1,8 @@
 //! One rendered frame as one OpenEXR file: receives a [`RenderedFrame`] and its [`FrameMeta`],
 //! writes `DIR/<scene>.<frame>.exr` atomically with the channels `R,G,B,A` (linear beauty, f32),
 //! `Z` (distance from the eye, f32), `P.X,P.Y,P.Z` (true world position, f32) and the 0/1 masks
-//! `flags.convergence`, `flags.boundary`, `flags.popping`, `flags.extrapolated` (f16), ZIP
-//! compressed. Reads such a file back for tests and tools.
+//! `flags.convergence`, `flags.boundary`, `flags.popping`, `flags.extrapolated` (f16) and
+//! `object` (u32: index + 1 of the object seen, 0 for none), ZIP compressed. Reads such a file back for tests and tools.
 //!
 //! Header attributes (besides the standard `worldToCamera`, `vFov`, `near`, `far`, `software`):
 //! `snell.frame` (int), `snell.timeSecs` (double), `snell.worldFromCamera` (m44f),
@@ -35,6 +35,9 @@ pub const FLAG_CHANNELS: [(&str, u32); 4] = [
     ("flags.popping", flag_bits::POPPING),
     ("flags.extrapolated", flag_bits::EXTRAPOLATED),
 ];
+
+/// Index + 1 of the object each pixel sees ([`RenderedFrame::object`]).
+pub const OBJECT_CHANNEL: &str = "object";
 
 const ATTRIBUTE_FRAME: &str = "snell.frame";
 const ATTRIBUTE_TIME_SECS: &str = "snell.timeSecs";
@@ -108,9 +111,11 @@ fn check_frame_shape(frame: &RenderedFrame) -> Result<usize, String> {
         ("distance_m", frame.distance_m.len()),
         ("position", frame.position.len()),
         ("flags", frame.flags.len()),
+        // Empty: a frame read from a file written before the layer existed.
+        ("object", frame.object.len()),
     ];
     for (name, length) in lengths {
-        if length != pixel_count {
+        if length != pixel_count && !(name == "object" && length == 0) {
             return Err(format!(
                 "frame buffer `{name}` holds {length} pixels but the frame is {}x{} = {pixel_count}",
                 frame.width, frame.height
@@ -165,6 +170,12 @@ fn build_image(
             })
             .collect();
         channels.push(AnyChannel::new(name, FlatSamples::F16(mask)));
+    }
+    if !frame.object.is_empty() {
+        channels.push(AnyChannel::new(
+            OBJECT_CHANNEL,
+            FlatSamples::U32(frame.object.clone()),
+        ));
     }
 
     let camera = &meta.camera;
@@ -388,6 +399,16 @@ pub fn read_frame_exr(path: &Path) -> Result<(RenderedFrame, ReadMeta), OutputEr
         distance_m: f32_channel("Z")?.clone(),
         position: (0..pixel_count).map(|i| [px[i], py[i], pz[i]]).collect(),
         flags,
+        // Frames written before the object layer existed have none.
+        object: match channel(OBJECT_CHANNEL) {
+            Ok(FlatSamples::U32(values)) => values.clone(),
+            Ok(_) => {
+                return Err(read_error(format!(
+                    "channel `{OBJECT_CHANNEL}` is not 32-bit unsigned"
+                )))
+            }
+            Err(_) => Vec::new(),
+        },
     };
 
     let attributes = &layer.attributes;
@@ -513,6 +534,7 @@ mod tests {
                 _ => [f32::from_bits(0x7fc0_1234), 1e-30, 12345.678],
             });
             frame.flags.push((i as u32 * 7) % 16);
+            frame.object.push((i as u32 * 5) % 3);
         }
         frame
     }
@@ -539,6 +561,7 @@ mod tests {
             "position"
         );
         assert_eq!(expected.flags, actual.flags, "flags");
+        assert_eq!(expected.object, actual.object, "object");
     }
 
     #[test]
@@ -628,6 +651,7 @@ mod tests {
             ("flags.boundary", "f16"),
             ("flags.popping", "f16"),
             ("flags.extrapolated", "f16"),
+            ("object", "u32"),
         ]
         .into_iter()
         .map(|(name, kind)| (name.to_string(), kind))

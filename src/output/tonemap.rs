@@ -115,6 +115,7 @@ mod tests {
             distance_m: vec![1.0; values.len()],
             position: vec![[0.0; 3]; values.len()],
             flags: vec![0; values.len()],
+            object: vec![0; values.len()],
         }
     }
 
