@@ -315,8 +315,7 @@ pub fn reference_figures(scene_path: &Path, frames: u32) -> Result<ReferenceFigu
             secs.push(stats.total_secs);
             rays.push(stats.refracted_rays as f64);
             builds.push(stats.build_secs * 1e3);
-            evaluations
-                .push(stats.surface_evaluations as f64 / stats.refracted_rays.max(1) as f64);
+            evaluations.push(stats.surface_evaluations as f64 / stats.refracted_rays.max(1) as f64);
             triangles = stats.triangles;
         }
     }

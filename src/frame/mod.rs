@@ -392,7 +392,14 @@ impl RenderJob {
                 ripples,
                 membrane,
             };
-            return Ok(self.traced_frame(frame, time_secs, camera, (width, height), inputs, stage_secs));
+            return Ok(self.traced_frame(
+                frame,
+                time_secs,
+                camera,
+                (width, height),
+                inputs,
+                stage_secs,
+            ));
         }
         let objects: std::borrow::Cow<'_, [Object]> = if posed.is_empty() {
             std::borrow::Cow::Borrowed(&self.objects)

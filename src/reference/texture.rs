@@ -104,7 +104,11 @@ impl TextureSet {
     pub fn sample(&self, layer: u32, uv: Vec2, lod: f32) -> Vec3 {
         let levels = &self.layers[(layer as usize).min(self.layers.len() - 1)];
         let top = (levels.len() - 1) as f32;
-        let lod = if lod.is_nan() { 0.0 } else { lod.clamp(0.0, top) };
+        let lod = if lod.is_nan() {
+            0.0
+        } else {
+            lod.clamp(0.0, top)
+        };
         let low = lod.floor();
         let fraction = lod - low;
         let first = bilinear(&levels[low as usize], uv);
