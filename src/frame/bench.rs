@@ -37,6 +37,12 @@ pub struct ReferenceFigures {
     /// Median wall-clock seconds of the whole traced frame (the tracer only: the water membrane
     /// and posing before it are in the frame-time figures' stages).
     pub secs_per_frame: f64,
+    /// Median process CPU seconds (user + system, every thread) of the traced frame.
+    pub cpu_secs_per_frame: f64,
+    /// Refracted rays per second had every one of the `threads` threads a core of its own:
+    /// refracted rays / (CPU seconds / threads). Equals `refracted_rays_per_sec` on an idle
+    /// machine; on a machine shared with other work it says what the tracer itself achieves.
+    pub refracted_rays_per_sec_unshared: f64,
     /// Refracted rays in a frame (median frame), of `size[0] * size[1]` primary rays.
     pub refracted_rays_per_frame: u64,
     /// Triangles in the frame's BVH and its build time (median), milliseconds.
@@ -50,7 +56,8 @@ impl ReferenceFigures {
     fn to_text(&self) -> String {
         format!(
             "ray-traced reference (raytrace, CPU, {} threads) of {} at {}x{} (median of {} frames):\n\
-             \x20 {:.2} M refracted rays/s, {:.3} s per frame ({} refracted rays; {} triangles, BVH build {:.1} ms; {:.1} surface evaluations per refracted ray)\n",
+             \x20 {:.2} M refracted rays/s, {:.3} s per frame ({} refracted rays; {} triangles, BVH build {:.1} ms; {:.1} surface evaluations per refracted ray)\n\
+             \x20 {:.3} CPU s per frame: {:.2} M refracted rays/s with a core per thread\n",
             self.threads,
             self.scene,
             self.size[0],
@@ -62,6 +69,8 @@ impl ReferenceFigures {
             self.triangles,
             self.bvh_build_ms,
             self.surface_evaluations_per_refracted_ray,
+            self.cpu_secs_per_frame,
+            self.refracted_rays_per_sec_unshared / 1e6,
         )
     }
 }
@@ -367,19 +376,24 @@ pub fn reference_figures(scene_path: &Path, frames: u32) -> Result<ReferenceFigu
         .min(timeline.last_frame - timeline.first_frame + 1);
     let (mut rates, mut secs, mut rays, mut builds, mut evaluations) =
         (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let (mut cpu_secs, mut unshared) = (Vec::new(), Vec::new());
+    let threads = rayon::current_num_threads();
     let mut triangles = 0;
     for (i, frame) in (timeline.first_frame..timeline.first_frame + frames + 1).enumerate() {
         let frame = frame.min(timeline.last_frame);
         let refracted = job.refract(frame, width, height, None)?;
+        let cpu_before = process_cpu_secs();
         let traced = job.trace_refracted(&refracted, width, height)?;
+        let cpu = process_cpu_secs() - cpu_before;
         let stats = traced.stats;
         if i > 0 {
+            cpu_secs.push(cpu);
+            unshared.push(stats.refracted_rays as f64 / (cpu / threads as f64));
             rates.push(stats.refracted_rays as f64 / stats.total_secs);
             secs.push(stats.total_secs);
             rays.push(stats.refracted_rays as f64);
             builds.push(stats.build_secs * 1e3);
-            evaluations
-                .push(stats.surface_evaluations as f64 / stats.refracted_rays.max(1) as f64);
+            evaluations.push(stats.surface_evaluations as f64 / stats.refracted_rays.max(1) as f64);
             triangles = stats.triangles;
         }
     }
@@ -387,7 +401,9 @@ pub fn reference_figures(scene_path: &Path, frames: u32) -> Result<ReferenceFigu
         scene: job.scene_name().to_string(),
         size: [width, height],
         frames_measured: frames,
-        threads: rayon::current_num_threads(),
+        threads,
+        cpu_secs_per_frame: median(&mut cpu_secs),
+        refracted_rays_per_sec_unshared: median(&mut unshared),
         refracted_rays_per_sec: median(&mut rates),
         secs_per_frame: median(&mut secs),
         refracted_rays_per_frame: median(&mut rays) as u64,
@@ -395,4 +411,16 @@ pub fn reference_figures(scene_path: &Path, frames: u32) -> Result<ReferenceFigu
         bvh_build_ms: median(&mut builds),
         surface_evaluations_per_refracted_ray: median(&mut evaluations),
     })
+}
+
+/// User + system CPU seconds this process has used, over all its threads.
+fn process_cpu_secs() -> f64 {
+    let mut usage = std::mem::MaybeUninit::<libc::rusage>::zeroed();
+    // SAFETY: getrusage fills the struct it is given; RUSAGE_SELF is always valid.
+    let usage = unsafe {
+        libc::getrusage(libc::RUSAGE_SELF, usage.as_mut_ptr());
+        usage.assume_init()
+    };
+    let secs = |t: libc::timeval| t.tv_sec as f64 + t.tv_usec as f64 * 1e-6;
+    secs(usage.ru_utime) + secs(usage.ru_stime)
 }

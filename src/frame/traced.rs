@@ -43,7 +43,13 @@ impl RenderJob {
     ) -> RefractedFrame {
         let draw = FrameDraw {
             membrane_vertices: super::membrane_vertices(&inputs.membrane),
-            membrane_indices: inputs.membrane.triangles.iter().flatten().copied().collect(),
+            membrane_indices: inputs
+                .membrane
+                .triangles
+                .iter()
+                .flatten()
+                .copied()
+                .collect(),
             materials: self
                 .objects
                 .iter()
@@ -111,12 +117,7 @@ impl RenderJob {
             objects: self.objects.iter().chain(&inputs.posed).collect(),
             materials: &refracted.draw.materials,
             textures,
-            surface: reference::exact_surface(
-                &inputs.waves,
-                ripples,
-                &field,
-                inputs.membrane.grid,
-            ),
+            surface: reference::exact_surface(&inputs.waves, ripples, &field, inputs.membrane.grid),
             membrane: &inputs.membrane,
             view: refracted.view,
             water_model,

@@ -507,7 +507,10 @@ mod tests {
                     other => panic!("{count} triangles: {other:?}"),
                 }
             }
-            assert!(hits > rays / 4, "{hits} of {rays} rays hit: too few to test");
+            assert!(
+                hits > rays / 4,
+                "{hits} of {rays} rays hit: too few to test"
+            );
         }
     }
 

@@ -285,7 +285,8 @@ impl<'a> Tracer<'a> {
         let [a, b, c] = mesh.triangles[triangle as usize].map(|i| i as usize);
         let (u, v) = (hit.u, hit.v);
         let w = 1.0 - u - v;
-        let normal = (mesh.normals[a] * w + mesh.normals[b] * u + mesh.normals[c] * v).normalize_or(Vec3::Y);
+        let normal =
+            (mesh.normals[a] * w + mesh.normals[b] * u + mesh.normals[c] * v).normalize_or(Vec3::Y);
         let uv = mesh.uvs[a] * w + mesh.uvs[b] * u + mesh.uvs[c] * v;
         let (pa, pb, pc) = (mesh.positions[a], mesh.positions[b], mesh.positions[c]);
         let cross = (pb - pa).cross(pc - pa);
@@ -299,7 +300,11 @@ impl<'a> Tracer<'a> {
             normal,
             uv,
             geometric_normal: if area2 > 0.0 { cross / area2 } else { normal },
-            texels_per_m: if area2 > 0.0 { (uv_area2 / area2).sqrt() } else { 0.0 },
+            texels_per_m: if area2 > 0.0 {
+                (uv_area2 / area2).sqrt()
+            } else {
+                0.0
+            },
         }
     }
 
@@ -312,12 +317,11 @@ impl<'a> Tracer<'a> {
     }
 }
 
-/// A traced frame: the GPU's layers, the object seen per pixel and what it cost.
+/// A traced frame: the GPU's layers and what it cost.
 pub struct TracedFrame {
+    /// `object` is filled as the GPU fills it: 0 = no object (sky, water with nothing behind
+    /// it); k + 1 = object k of [`TraceScene::objects`].
     pub rendered: RenderedFrame,
-    /// Row-major like the layers: 0 = no object (sky, water with nothing behind it); k + 1 =
-    /// object k of [`TraceScene::objects`].
-    pub object: Vec<u32>,
     pub stats: TraceStats,
 }
 
@@ -335,9 +339,9 @@ pub fn trace_frame(scene: &TraceScene, width: u32, height: u32) -> TracedFrame {
         distance_m: vec![0.0; pixels],
         position: vec![[0.0; 3]; pixels],
         flags: vec![0; pixels],
-        object: Vec::new(),
+        object: vec![0; pixels],
     };
-    let mut objects = vec![0u32; pixels];
+    let mut objects = std::mem::take(&mut frame.object);
     let tile = (width * ROWS_PER_TILE) as usize;
     let counts: (u64, u64) = frame
         .beauty_rgba
@@ -378,11 +382,9 @@ pub fn trace_frame(scene: &TraceScene, width: u32, height: u32) -> TracedFrame {
         build_secs,
         total_secs: started.elapsed().as_secs_f64(),
     };
-    // The frame's object-id layer (main's RenderedFrame::object) is the same ids.
-    frame.object.clone_from(&objects);
+    frame.object = objects;
     TracedFrame {
         rendered: frame,
-        object: objects,
         stats,
     }
 }
@@ -541,7 +543,13 @@ mod tests {
             }
         }
 
-        fn scene(&self, water_model: WaterModel, slope: f64, curvature: f64, range: (f64, f64)) -> TraceScene<'_> {
+        fn scene(
+            &self,
+            water_model: WaterModel,
+            slope: f64,
+            curvature: f64,
+            range: (f64, f64),
+        ) -> TraceScene<'_> {
             TraceScene {
                 objects: self.objects.iter().collect(),
                 materials: &self.materials,
@@ -649,7 +657,12 @@ mod tests {
             (1, Vec3::new(s_x + tan_t, -1.0, 0.0))
         };
         assert_eq!(seen.object, expected.0);
-        assert!((seen.position - expected.1).length() < 1e-5, "{} vs {}", seen.position, expected.1);
+        assert!(
+            (seen.position - expected.1).length() < 1e-5,
+            "{} vs {}",
+            seen.position,
+            expected.1
+        );
         assert!(seen.position.y < 0.0);
     }
 
@@ -676,7 +689,8 @@ mod tests {
         assert!(sample.position.is_nan());
         assert!((sample.distance_m - 1.0).abs() < 1e-6);
         let r0 = ((1.0 - N_WATER) / (1.0 + N_WATER)).powi(2);
-        let expected = r0 * lighting().sky_zenith_linear + (1.0 - r0) * water().scatter_color_linear;
+        let expected =
+            r0 * lighting().sky_zenith_linear + (1.0 - r0) * water().scatter_color_linear;
         assert!((sample.beauty - expected).abs().max_element() < 1e-6);
         // Looking up: sky, at infinity, no position.
         let sky = tracer.trace(Vec3::Y);
@@ -687,15 +701,16 @@ mod tests {
 
     #[test]
     fn on_waves_the_exact_surface_and_the_fine_membrane_see_nearly_the_same_floor() {
-        let field = FnHeightField::new(|x, z| 0.03 * (2.0 * x + 0.5 * z).cos())
-            .with_gradient(|x, z| {
+        let field =
+            FnHeightField::new(|x, z| 0.03 * (2.0 * x + 0.5 * z).cos()).with_gradient(|x, z| {
                 let s = -0.03 * (2.0 * x + 0.5 * z).sin();
                 (2.0 * s, 0.5 * s)
             });
         let k = (4.0f64 + 0.25).sqrt();
         let fixture = Fixture::new(vec![floor(-1.0, 4.0)], field, Vec3::new(-2.0, 1.5, 0.3));
         let exact_scene = fixture.scene(WaterModel::Exact, 0.03 * k, 0.03 * k * k, (-0.03, 0.03));
-        let membrane_scene = fixture.scene(WaterModel::Membrane, 0.03 * k, 0.03 * k * k, (-0.03, 0.03));
+        let membrane_scene =
+            fixture.scene(WaterModel::Membrane, 0.03 * k, 0.03 * k * k, (-0.03, 0.03));
         let exact = TraceScene { ..exact_scene };
         let exact_tracer = Tracer::new(&exact, 100);
         let membrane_tracer = Tracer::new(&membrane_scene, 100);
@@ -709,13 +724,19 @@ mod tests {
             // On the exact surface itself.
             let s = fixture.camera.eye + direction * e.distance_m;
             let h = fixture.field.height(s.x as f64, s.z as f64) as f32;
-            assert!((s.y - h).abs() < 1e-4, "surface point off the surface: {s} vs {h}");
+            assert!(
+                (s.y - h).abs() < 1e-4,
+                "surface point off the surface: {s} vs {h}"
+            );
             largest = largest.max((e.position - m.position).length());
         }
         // 25 cm facets on a 3 cm, 3 m wave: normals interpolated between exact vertex normals
         // differ from the exact normal by ~1e-3 rad, which moves the floor point 1 m down by
         // about a millimetre; the faceted surface's height error (~0.3 mm) adds less.
-        assert!(largest < 5e-3, "exact and membrane floors differ by {largest} m");
+        assert!(
+            largest < 5e-3,
+            "exact and membrane floors differ by {largest} m"
+        );
         assert!(largest > 0.0, "the two models cannot be identical on waves");
     }
 }

@@ -98,7 +98,9 @@ impl ExactSurface<'_> {
         if point.y > self.height_range_m.1 + slack_m || !self.covers(point.x, point.z, slack_m) {
             return false;
         }
-        point.y <= self.field.height(point.x, point.z) + slack_m
+        // Under the lowest trough: in the water wherever the field is (pool floors and walls).
+        point.y <= self.height_range_m.0 + slack_m
+            || point.y <= self.field.height(point.x, point.z) + slack_m
     }
 
     /// The first point with `t` in `[t_min, t_max]` where the ray passes from above the surface to
@@ -232,7 +234,13 @@ impl<'a> MembraneSurface<'a> {
 
     /// The nearest facet the ray meets in `(t_min, t_max)` (either side), with the normal
     /// interpolated from its vertices' as the rasteriser interpolates it.
-    pub fn first_hit(&self, origin: Vec3, direction: Vec3, t_min: f32, t_max: f32) -> Option<SurfaceHit> {
+    pub fn first_hit(
+        &self,
+        origin: Vec3,
+        direction: Vec3,
+        t_min: f32,
+        t_max: f32,
+    ) -> Option<SurfaceHit> {
         let ray = Ray::new(origin, direction);
         let hit = self.bvh.closest_hit(&ray, t_min, t_max, |_| true)?;
         let [a, b, c] = self.membrane.triangles[hit.triangle as usize];
@@ -268,10 +276,19 @@ mod tests {
         let field = FnHeightField::new(move |x, _| a * (-(x * x) / (w * w)).exp())
             .with_gradient(move |x, _| (-2.0 * a * x / (w * w) * (-(x * x) / (w * w)).exp(), 0.0));
         // max |h'| = a sqrt(2/e) / w at x = w / sqrt(2); max |h''| = 2 a / w^2 at x = 0.
-        (field, a * (2.0f64 / std::f64::consts::E).sqrt() / w, 2.0 * a / (w * w))
+        (
+            field,
+            a * (2.0f64 / std::f64::consts::E).sqrt() / w,
+            2.0 * a / (w * w),
+        )
     }
 
-    fn surface<'a>(field: &'a FnHeightField, slope: f64, curvature: f64, a: f64) -> ExactSurface<'a> {
+    fn surface<'a>(
+        field: &'a FnHeightField,
+        slope: f64,
+        curvature: f64,
+        a: f64,
+    ) -> ExactSurface<'a> {
         ExactSurface {
             field,
             extent: extent(10.0),
@@ -299,11 +316,17 @@ mod tests {
             .expect("a ray 0.1 mm under the crest top must meet it");
         // Where the near flank reaches y: x = -w sqrt(ln(a / y)).
         let expected_x = -w * (a / (a - 1e-4)).ln().sqrt();
-        assert!((hit.position.x - expected_x).abs() < 1e-6, "{hit:?} vs {expected_x}");
+        assert!(
+            (hit.position.x - expected_x).abs() < 1e-6,
+            "{hit:?} vs {expected_x}"
+        );
         assert!((hit.position.y - field.height(hit.position.x, 0.3)).abs() < 1e-6);
         // 0.1 mm over the crest: no hit, and not stopped early.
         let over = DVec3::new(-5.0, a + 1e-4, 0.3);
-        assert_eq!(water.first_crossing(over, direction, 0.0, 20.0, &mut steps), None);
+        assert_eq!(
+            water.first_crossing(over, direction, 0.0, 20.0, &mut steps),
+            None
+        );
         // A descending ray that passes just over the crest, then meets the flat water behind it:
         // the hit is behind the crest, not on it.
         let descending = DVec3::new(1.0, -0.02, 0.0).normalize();
@@ -328,19 +351,26 @@ mod tests {
         let mut steps = RootSteps::default();
         let origin = DVec3::new(0.0, 1.0, -1.0);
         let direction = DVec3::new(0.3, -1.0, 0.4);
-        let hit = water.first_crossing(origin, direction, 0.0, 100.0, &mut steps).unwrap();
+        let hit = water
+            .first_crossing(origin, direction, 0.0, 100.0, &mut steps)
+            .unwrap();
         assert!((hit.t - 1.25).abs() < 1e-12);
         assert_eq!(hit.normal, DVec3::Y);
         // Outside the extent there is no water: a ray meeting the plane at x = 3 misses.
         let far = DVec3::new(3.0 / 1.25, -1.0, 0.0);
-        assert_eq!(water.first_crossing(origin, far, 0.0, 100.0, &mut steps), None);
+        assert_eq!(
+            water.first_crossing(origin, far, 0.0, 100.0, &mut steps),
+            None
+        );
     }
 
     #[test]
     fn random_rays_on_waves_agree_with_dense_sampling() {
         // Two crossing waves; the first crossing found must have no earlier sign change on a
         // dense sampling of the ray (no crest skipped), and lie on the surface.
-        let field = FnHeightField::new(|x, z| 0.05 * (3.0 * x + 1.0).cos() + 0.02 * (7.0 * z - 2.0 * x).cos());
+        let field = FnHeightField::new(|x, z| {
+            0.05 * (3.0 * x + 1.0).cos() + 0.02 * (7.0 * z - 2.0 * x).cos()
+        });
         let slope = 0.05 * 3.0 + 0.02 * (49.0f64 + 4.0).sqrt();
         let curvature = 0.05 * 9.0 + 0.02 * 53.0;
         let water = ExactSurface {
@@ -354,8 +384,17 @@ mod tests {
         let mut hits = 0;
         for i in 0..400 {
             let a = i as f64 * 0.7;
-            let origin = DVec3::new(-3.5 + (a * 1.3).sin(), 0.3 + 0.2 * (a * 0.9).cos(), -3.5 + (a * 0.7).cos());
-            let direction = DVec3::new(1.0 + 0.5 * a.sin(), -0.05 - 0.2 * (a * 1.7).cos().abs(), 1.0).normalize();
+            let origin = DVec3::new(
+                -3.5 + (a * 1.3).sin(),
+                0.3 + 0.2 * (a * 0.9).cos(),
+                -3.5 + (a * 0.7).cos(),
+            );
+            let direction = DVec3::new(
+                1.0 + 0.5 * a.sin(),
+                -0.05 - 0.2 * (a * 1.7).cos().abs(),
+                1.0,
+            )
+            .normalize();
             let found = water.first_crossing(origin, direction, 0.0, 20.0, &mut steps);
             let limit = found.map_or(20.0, |h| h.t);
             let samples = 20_000;
@@ -374,10 +413,15 @@ mod tests {
                 }
                 was_above = covered && clearance > 0.0;
             }
-            assert_eq!(crossed_before, None, "ray {i}: a crossing before {limit} was skipped");
+            assert_eq!(
+                crossed_before, None,
+                "ray {i}: a crossing before {limit} was skipped"
+            );
             if let Some(hit) = found {
                 hits += 1;
-                assert!((hit.position.y - field.height(hit.position.x, hit.position.z)).abs() < 1e-6);
+                assert!(
+                    (hit.position.y - field.height(hit.position.x, hit.position.z)).abs() < 1e-6
+                );
             }
         }
         assert!(hits > 100, "only {hits} rays met the water");

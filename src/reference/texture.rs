@@ -104,7 +104,11 @@ impl TextureSet {
     pub fn sample(&self, layer: u32, uv: Vec2, lod: f32) -> Vec3 {
         let levels = &self.layers[(layer as usize).min(self.layers.len() - 1)];
         let top = (levels.len() - 1) as f32;
-        let lod = if lod.is_nan() { 0.0 } else { lod.clamp(0.0, top) };
+        let lod = if lod.is_nan() {
+            0.0
+        } else {
+            lod.clamp(0.0, top)
+        };
         let low = lod.floor();
         let fraction = lod - low;
         let first = bilinear(&levels[low as usize], uv);
@@ -127,7 +131,15 @@ fn bilinear(level: &Level, uv: Vec2) -> Vec3 {
     let (x0, y0) = (x.floor(), y.floor());
     let (fx, fy) = (x - x0, y - y0);
     let (ix, iy) = (x0 as i64, y0 as i64);
-    let at = |i: i64, j: i64| level.texels[(j.rem_euclid(h) * w + i.rem_euclid(w)) as usize];
+    // Power-of-two sides (every built-in texture) wrap with a mask, others by remainder.
+    let wrap = |i: i64, n: i64| {
+        if n & (n - 1) == 0 {
+            i & (n - 1)
+        } else {
+            i.rem_euclid(n)
+        }
+    };
+    let at = |i: i64, j: i64| level.texels[(wrap(j, h) * w + wrap(i, w)) as usize];
     let top = at(ix, iy) * (1.0 - fx) + at(ix + 1, iy) * fx;
     let bottom = at(ix, iy + 1) * (1.0 - fx) + at(ix + 1, iy + 1) * fx;
     top * (1.0 - fy) + bottom * fy

@@ -562,7 +562,10 @@ mod tests {
             largest.1 = largest.1.max(sum(slopes));
             largest.2 = largest.2.max(sum(curvatures));
         }
-        assert!(largest.0 <= w && largest.1 <= dw && largest.2 <= ddw, "{largest:?}");
+        assert!(
+            largest.0 <= w && largest.1 <= dw && largest.2 <= ddw,
+            "{largest:?}"
+        );
         // Tight, so the root finder's steps are not needlessly short.
         assert!(largest.0 > 0.99 * w && largest.1 > 0.99 * dw && largest.2 > 0.99 * ddw);
     }
@@ -582,7 +585,10 @@ mod tests {
             let u = glam::DVec2::new((i as f64).cos(), (i as f64).sin());
             let along = |d: f64| field.height(x + d * u.x, z + d * u.y);
             let second = (along(e) - 2.0 * along(0.0) + along(-e)) / (e * e);
-            assert!(second.abs() <= curvature * 1.001 + 1e-3, "{second} vs {curvature}");
+            assert!(
+                second.abs() <= curvature * 1.001 + 1e-3,
+                "{second} vs {curvature}"
+            );
         }
     }
 

@@ -215,11 +215,13 @@ impl WaterSurface {
     /// derivative `|u^T H u|` for unit horizontal `u` (sum of `a k` and of `a k^2` over the waves).
     /// What a root finder needs to step along a ray without ever stepping over the surface.
     pub fn slope_and_curvature_bounds(&self) -> (f64, f64) {
-        self.terms.iter().fold((0.0, 0.0), |(slope, curvature), term| {
-            let k = term.kx.hypot(term.kz);
-            let a = term.amplitude_m.abs();
-            (slope + a * k, curvature + a * k * k)
-        })
+        self.terms
+            .iter()
+            .fold((0.0, 0.0), |(slope, curvature), term| {
+                let k = term.kx.hypot(term.kz);
+                let a = term.amplitude_m.abs();
+                (slope + a * k, curvature + a * k * k)
+            })
     }
 
     /// Lowest and highest heights this surface can reach: level -/+ the sum of |amplitudes|.
