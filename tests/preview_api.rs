@@ -125,7 +125,7 @@ fn frames_equal_the_renderers_and_bad_requests_are_4xx() {
     error_of(&server, "/api/frame/1.5.png", 400);
     error_of(&server, "/api/frame/99999999999.png", 400);
     error_of(&server, "/api/frame/3.gif", 404);
-    assert!(error_of(&server, "/api/frame/3.png?method=exact", 400).contains("equal-t"));
+    assert!(error_of(&server, "/api/frame/3.png?method=no-such-method", 400).contains("equal-t"));
     error_of(&server, "/api/frame/3.png?exposure=bright", 400);
     error_of(&server, "/api/frame/3.png?exposure=1e9", 400);
     assert!(error_of(&server, "/api/frame/3.png?flags=wobble", 400).contains("convergence"));

@@ -88,9 +88,8 @@ impl FermatProblem<'_> {
     /// `grad L` and `Hess L`; None where they are undefined (S on the eye or on the point).
     fn local(&self, xz: DVec2) -> Option<Local> {
         let (x, z) = (xz.x, xz.y);
-        let s = DVec3::new(x, self.surface.height(x, z), z);
-        let (hx, hz) = self.surface.gradient(x, z);
-        let (hxx, hxz, hzz) = self.surface.hessian(x, z);
+        let (height, (hx, hz), (hxx, hxz, hzz)) = self.surface.height_derivatives(x, z);
+        let s = DVec3::new(x, height, z);
         let to_eye = s - self.eye;
         let to_point = s - self.point;
         let (eye_m, water_m) = (to_eye.length(), to_point.length());
@@ -203,26 +202,73 @@ pub fn path_is_clear(problem: &FermatProblem, sight_point: DVec3) -> bool {
 /// the refracted ray leave into the water: `(S - E) . N < 0` and `(V - S) . N < 0` with N the
 /// upward normal; away from S each sample must be on its side, within a round-off tolerance.
 pub fn path_is_clear_sampled(problem: &FermatProblem, sight_point: DVec3, max_step_m: f64) -> bool {
+    path_is_clear_in_band(
+        problem,
+        sight_point,
+        max_step_m,
+        (f64::NEG_INFINITY, f64::INFINITY),
+    )
+}
+
+/// [`path_is_clear_sampled`] for a surface known to lie within `surface_y_range_m` (min, max):
+/// only the parts of the segments inside that band can meet it, so only those are sampled (the
+/// eye's segment rises and the point's falls away from S). What makes the exact method cheap
+/// where the eye is far from the water.
+pub fn path_is_clear_in_band(
+    problem: &FermatProblem,
+    sight_point: DVec3,
+    max_step_m: f64,
+    surface_y_range_m: (f64, f64),
+) -> bool {
     let s = sight_point;
     let (hx, hz) = problem.surface.gradient(s.x, s.z);
     let up = DVec3::new(-hx, 1.0, -hz);
     if (s - problem.eye).dot(up) >= 0.0 || (problem.point - s).dot(up) >= 0.0 {
         return false;
     }
-    segment_on_side(problem.surface, s, problem.eye, true, max_step_m)
-        && segment_on_side(problem.surface, s, problem.point, false, max_step_m)
+    let (low_m, high_m) = surface_y_range_m;
+    // Fraction of each segment (from S) inside the band.
+    let eye_end = band_end(s, problem.eye, high_m);
+    let point_end = band_end(s, problem.point, low_m);
+    segment_on_side(problem.surface, s, problem.eye, eye_end, true, max_step_m)
+        && segment_on_side(
+            problem.surface,
+            s,
+            problem.point,
+            point_end,
+            false,
+            max_step_m,
+        )
 }
 
-/// Samples `from + (to - from) k / n`, k = 1..=n, and checks each is above (or below) the surface.
+/// How far along `from` -> `to` (as a fraction) the segment stays on the near side of height
+/// `limit_m` (1 when it never crosses it).
+fn band_end(from: DVec3, to: DVec3, limit_m: f64) -> f64 {
+    let rise = to.y - from.y;
+    if !limit_m.is_finite() || rise == 0.0 {
+        return 1.0;
+    }
+    let end = (limit_m - from.y) / rise;
+    if end > 0.0 {
+        end.min(1.0)
+    } else {
+        // S already beyond the limit (a band that does not contain the surface here): check all.
+        1.0
+    }
+}
+
+/// Samples `from + (to - from) s` for s in (0, end], at most `max_step_m` apart horizontally,
+/// and checks each is above (or below) the surface.
 fn segment_on_side(
     surface: &dyn HeightField,
     from: DVec3,
     to: DVec3,
+    end: f64,
     above: bool,
     max_step_m: f64,
 ) -> bool {
     let along = to - from;
-    let horizontal_m = DVec2::new(along.x, along.z).length();
+    let horizontal_m = DVec2::new(along.x, along.z).length() * end;
     let samples = if max_step_m > 0.0 && max_step_m.is_finite() {
         (horizontal_m / max_step_m).ceil().clamp(1.0, 1e6) as u32
     } else {
@@ -231,7 +277,7 @@ fn segment_on_side(
     // Round-off of the heights compared (the segment touches the surface at `from`).
     let tolerance_m = 1e-9 * (1.0 + along.length() + from.abs().max_element());
     (1..=samples).all(|k| {
-        let p = from + along * (k as f64 / samples as f64);
+        let p = from + along * (end * k as f64 / samples as f64);
         let above_m = p.y - surface.height(p.x, p.z);
         if above {
             above_m >= -tolerance_m
@@ -261,7 +307,7 @@ pub const EXACT_MERGE_DISTANCE_PER_PATH: f64 = 1e-7;
 
 /// The exact images of `point` (cleared into `out`), one solve per linear image in `linear` (in
 /// their order: by facet), started from its sight point: converged solves with a clear path
-/// ([`path_is_clear_sampled`] at the crest check's step) are kept, merged where they coincide;
+/// ([`path_is_clear_in_band`] at the crest check's step) are kept, merged where they coincide;
 /// blocked ones are dropped (no image there); failed solves keep the linear image, flagged.
 pub fn exact_images(
     field: &RefractionField,
@@ -278,6 +324,7 @@ pub fn exact_images(
         n_below: field.setup.n_below as f64,
     };
     let step_m = CREST_SAMPLE_STEP_PER_SPACING * field.spacing_m();
+    let band_m = field.surface_height_bounds_m();
     for image in linear {
         let start = DVec2::new(image.sight_point.x as f64, image.sight_point.z as f64);
         match solve_sight_point(&problem, start) {
@@ -288,7 +335,7 @@ pub fn exact_images(
                 let duplicate = out
                     .iter()
                     .any(|k| !k.newton_fallback && (k.sight_point - s).length() <= tolerance_m);
-                if !duplicate && path_is_clear_sampled(&problem, s, step_m) {
+                if !duplicate && path_is_clear_in_band(&problem, s, step_m, band_m) {
                     out.push(ExactImage {
                         facet: image.facet,
                         sight_point: s,
@@ -507,6 +554,10 @@ mod tests {
             ..blocked
         };
         assert!(path_is_clear(&clear, s));
+        // Sampling only the surface's height band still sees the crest (it rises into the band
+        // the eye's segment crosses), and the band changes nothing for the clear path.
+        assert!(!path_is_clear_in_band(&blocked, s, 0.01, (0.0, 0.5)));
+        assert!(path_is_clear_in_band(&clear, s, 0.01, (-1e-9, 1e-9)));
         // The eye under the water: the sight ray would reach S from below.
         let from_below = FermatProblem {
             eye: DVec3::new(-3.0, -0.3, 0.0),

@@ -9,8 +9,9 @@ use glam::{DVec2, Vec2, Vec3};
 use super::exact::{path_is_clear, ExactImage, FermatProblem};
 use super::flat::{flat_virtual_vertex, virtual_vertex};
 use super::search::test_support::membrane_from;
-use super::search::{CellMode, Image, RefractionField, RefractionSetup};
+use super::search::{Image, RefractionField};
 use super::subdivision::{distance_to_segment, SubdivisionSettings};
+use super::virtual_geometry::tests::{grid, setup, Crest};
 use super::virtual_geometry::{
     build_virtual_geometry, build_virtual_geometry_with, exact_vertex_images, query_height_range,
     ImageSearch, Placement, VirtualGeometry, VirtualGeometryRequest,
@@ -18,26 +19,14 @@ use super::virtual_geometry::{
 use crate::camera::Camera;
 use crate::draw::flag_bits;
 use crate::mesh::{Material, Mesh, Object};
-use crate::water::{FlatHeightField, HeightField, Membrane, MembraneGrid};
+use crate::water::{FlatHeightField, HeightField, Membrane};
 
 const N_AIR: f32 = 1.0;
 const N_WATER: f32 = 1.333;
 
-/// A steep Gaussian ridge along z at x = 0: a lens that focuses rays, so points deep under it
-/// have several images (the same crest as the virtual-geometry tests).
-struct Crest;
-const CREST_HEIGHT_M: f64 = 0.3;
-const CREST_WIDTH_M: f64 = 0.3;
-impl HeightField for Crest {
-    fn height(&self, x: f64, _: f64) -> f64 {
-        let u = x / CREST_WIDTH_M;
-        CREST_HEIGHT_M * (-u * u).exp()
-    }
-    fn gradient(&self, x: f64, z: f64) -> (f64, f64) {
-        let u = x / CREST_WIDTH_M;
-        (-2.0 * u / CREST_WIDTH_M * self.height(x, z), 0.0)
-    }
-}
+/// The virtual-geometry tests' steep Gaussian ridge, at x = 0: a lens that focuses rays, so
+/// points deep under it have several images.
+const CREST: Crest = Crest { centre_x_m: 0.0 };
 
 /// Flat water whose second derivatives are undefined: the cells (heights, slopes) work, Newton
 /// (which needs the Hessian) cannot. Forces the fallback.
@@ -51,26 +40,6 @@ impl HeightField for NoHessian {
     }
     fn hessian(&self, _: f64, _: f64) -> (f64, f64, f64) {
         (f64::NAN, f64::NAN, f64::NAN)
-    }
-}
-
-fn grid(min: (f64, f64), max: (f64, f64), cells: (u32, u32)) -> MembraneGrid {
-    MembraneGrid {
-        min_x: min.0,
-        min_z: min.1,
-        max_x: max.0,
-        max_z: max.1,
-        cells_x: cells.0,
-        cells_z: cells.1,
-    }
-}
-
-fn setup(eye: Vec3) -> RefractionSetup {
-    RefractionSetup {
-        eye,
-        n_above: N_AIR,
-        n_below: N_WATER,
-        cell_mode: CellMode::EqualT,
     }
 }
 
@@ -147,9 +116,9 @@ fn geometry(
 /// none a fallback; the frame flags the convergence zone and draws the least-optical-path one.
 #[test]
 fn exact_mode_finds_every_image_under_a_crest() {
-    let membrane = membrane_from(&Crest, grid((-1.5, -1.0), (1.5, 1.0), (96, 16)));
+    let membrane = membrane_from(&CREST, grid((-1.5, -1.0), (1.5, 1.0), (96, 16)));
     let eye = Vec3::new(0.0, 2.5, -1.5);
-    let field = RefractionField::build(&membrane, &Crest, setup(eye), (-2.5, 0.4));
+    let field = RefractionField::build(&membrane, &CREST, setup(eye), (-2.5, 0.4));
     let mut linear: Vec<Image> = Vec::new();
     let point = [-1.2_f32, -1.6, -2.0]
         .into_iter()
@@ -175,7 +144,7 @@ fn exact_mode_finds_every_image_under_a_crest() {
     assert_eq!(exact.len(), linear.len(), "{exact:?} from {linear:?}");
     assert_eq!(images.image_count as usize, exact.len());
     let problem = FermatProblem {
-        surface: &Crest,
+        surface: &CREST,
         eye: eye.as_dvec3(),
         point: point.as_dvec3(),
         n_above: N_AIR as f64,
@@ -184,7 +153,7 @@ fn exact_mode_finds_every_image_under_a_crest() {
     for image in &exact {
         assert!(!image.newton_fallback);
         let s = image.sight_point;
-        assert!((s.y - Crest.height(s.x, s.z)).abs() < 1e-15);
+        assert!((s.y - CREST.height(s.x, s.z)).abs() < 1e-15);
         let g = problem.optical_gradient(DVec2::new(s.x, s.z));
         assert!(g.length() < 1e-11, "{image:?}: |grad L| {}", g.length());
         assert!(path_is_clear(&problem, s), "{image:?}");
@@ -226,7 +195,7 @@ fn exact_mode_finds_every_image_under_a_crest() {
     };
     let frame = geometry(
         &membrane,
-        &Crest,
+        &CREST,
         camera,
         (640, 480),
         &objects,
@@ -637,7 +606,7 @@ fn subdivision_keeps_the_water_line_closed() {
 /// The linear placement of `build_virtual_geometry_with` is `build_virtual_geometry`.
 #[test]
 fn linear_placement_is_the_cell_method() {
-    let surface = Crest;
+    let surface = CREST;
     let membrane = membrane_from(&surface, grid((-1.5, -1.0), (1.5, 1.0), (48, 16)));
     let objects = [sheet(8, (-1.2, 1.2), (-0.8, 0.8), |x, _| -0.8 + 0.1 * x)];
     let camera = flat_camera();

@@ -658,6 +658,15 @@ impl<'a> RefractionField<'a> {
         self.spacing_m
     }
 
+    /// Heights (min, max) the exact surface stays within: the membrane vertices' range widened
+    /// by the crest check's faceting tolerance (the same bound the crest check relies on).
+    pub fn surface_height_bounds_m(&self) -> (f64, f64) {
+        (
+            self.surface_y_min - self.crest_tolerance_m,
+            self.surface_y_max + self.crest_tolerance_m,
+        )
+    }
+
     /// The cell of one facet.
     #[inline]
     pub fn cell(&self, facet: u32) -> Cell {

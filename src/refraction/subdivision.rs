@@ -10,9 +10,9 @@
 //! limit. New vertices get the true edge's midpoint, interpolated normal and uv, and their own
 //! exact virtual position. Pure CPU.
 
-use glam::{DVec2, Vec2, Vec3};
+use glam::{DVec2, DVec3, Vec2, Vec3};
 
-use super::exact::{path_is_clear_sampled, solve_sight_point, FermatProblem};
+use super::exact::{path_is_clear_in_band, solve_sight_point, FermatProblem};
 use super::flat::virtual_vertex;
 use super::search::{RefractionField, CREST_SAMPLE_STEP_PER_SPACING};
 use super::split::{WaterVolume, SURFACE_TOLERANCE_M};
@@ -85,9 +85,26 @@ impl Subdivider<'_> {
         triangle: [SubdivisionVertex; 3],
         out: &mut Vec<[SubdivisionVertex; 3]>,
     ) -> SubdivisionStats {
+        let first = std::array::from_fn(|k| self.split_edge(&triangle[k], &triangle[(k + 1) % 3]));
+        self.subdivide_from(triangle, first, out)
+    }
+
+    /// [`Self::subdivide`] given the answers of [`Self::split_edge`] for the triangle's own edges
+    /// (`first[k]` for `triangle[k]`-`triangle[k + 1]`): a frame computes them once per edge shared
+    /// by two triangles. The same output as `subdivide`, since the answers are the same.
+    pub fn subdivide_from(
+        &self,
+        triangle: [SubdivisionVertex; 3],
+        first: [Option<SubdivisionVertex>; 3],
+        out: &mut Vec<[SubdivisionVertex; 3]>,
+    ) -> SubdivisionStats {
         let mut stats = SubdivisionStats::default();
         let before = out.len();
-        self.subdivide_at(triangle, [false; 3], 0, out, &mut stats);
+        if self.settings.max_depth == 0 {
+            out.push(triangle);
+        } else {
+            self.split_with(triangle, first, 0, out, &mut stats);
+        }
         stats.pieces = (out.len() - before) as u32;
         stats
     }
@@ -114,6 +131,19 @@ impl Subdivider<'_> {
                 self.split_edge(&t[k], &t[(k + 1) % 3])
             }
         });
+        self.split_with(t, mids, level, out, stats);
+    }
+
+    /// Splits `t` at the midpoints `mids` (of edges k = `t[k]`-`t[k+1]`) and goes on with the
+    /// pieces one level deeper.
+    fn split_with(
+        &self,
+        t: [SubdivisionVertex; 3],
+        mids: [Option<SubdivisionVertex>; 3],
+        level: u32,
+        out: &mut Vec<[SubdivisionVertex; 3]>,
+        stats: &mut SubdivisionStats,
+    ) {
         let count = mids.iter().filter(|m| m.is_some()).count();
         if count == 0 {
             out.push(t);
@@ -168,9 +198,13 @@ impl Subdivider<'_> {
         let (sight_a, sight_b) = (a.sight_xz?, b.sight_xz?);
         let position = (0.5 * (a.position.as_dvec3() + b.position.as_dvec3())).as_vec3();
         let (virtual_position, water_path_m, sight_xz) =
-            self.exact_vertex(position, 0.5 * (sight_a + sight_b))?;
+            self.exact_vertex_unchecked(position, 0.5 * (sight_a + sight_b))?;
         let stray_px = self.stray_px(a.virtual_position, b.virtual_position, virtual_position)?;
-        (stray_px > self.settings.tolerance_px).then(|| SubdivisionVertex {
+        // The path check only matters for a vertex that will exist: most edges stay whole.
+        let sight_point = DVec3::new(sight_xz.x, 0.0, sight_xz.y);
+        let keep =
+            stray_px > self.settings.tolerance_px && self.path_is_clear(position, sight_point);
+        keep.then(|| SubdivisionVertex {
             position,
             normal: (a.normal + b.normal).normalize_or(a.normal),
             uv: 0.5 * (a.uv + b.uv),
@@ -185,6 +219,17 @@ impl Subdivider<'_> {
     /// `start_xz`, with its water path and sight point; None when the point is not under the
     /// water, the solve fails or the path is blocked.
     pub fn exact_vertex(&self, position: Vec3, start_xz: DVec2) -> Option<(Vec3, f32, DVec2)> {
+        let found = self.exact_vertex_unchecked(position, start_xz)?;
+        let sight_point = DVec3::new(found.2.x, 0.0, found.2.y);
+        self.path_is_clear(position, sight_point).then_some(found)
+    }
+
+    /// [`Self::exact_vertex`] without the path check.
+    fn exact_vertex_unchecked(
+        &self,
+        position: Vec3,
+        start_xz: DVec2,
+    ) -> Option<(Vec3, f32, DVec2)> {
         let field = self.field;
         let point = position.as_dvec3();
         let water = WaterVolume {
@@ -194,18 +239,8 @@ impl Subdivider<'_> {
         if water.height_above_surface_m(point)? >= -SURFACE_TOLERANCE_M {
             return None;
         }
-        let problem = FermatProblem {
-            surface: field.surface,
-            eye: field.setup.eye.as_dvec3(),
-            point,
-            n_above: field.setup.n_above as f64,
-            n_below: field.setup.n_below as f64,
-        };
+        let problem = self.problem(point);
         let s = solve_sight_point(&problem, start_xz)?.sight_point;
-        let step_m = CREST_SAMPLE_STEP_PER_SPACING * field.spacing_m();
-        if !path_is_clear_sampled(&problem, s, step_m) {
-            return None;
-        }
         let virtual_position =
             virtual_vertex(problem.eye, s, point, problem.n_above, problem.n_below);
         Some((
@@ -213,6 +248,27 @@ impl Subdivider<'_> {
             (point - s).length() as f32,
             DVec2::new(s.x, s.z),
         ))
+    }
+
+    fn problem(&self, point: DVec3) -> FermatProblem<'_> {
+        let field = self.field;
+        FermatProblem {
+            surface: field.surface,
+            eye: field.setup.eye.as_dvec3(),
+            point,
+            n_above: field.setup.n_above as f64,
+            n_below: field.setup.n_below as f64,
+        }
+    }
+
+    /// Whether the path from the eye through the sight point above `sight_point`'s (x, z) to
+    /// `position` is clear, at the crest check's step within the surface's height band.
+    fn path_is_clear(&self, position: Vec3, sight_point: DVec3) -> bool {
+        let field = self.field;
+        let problem = self.problem(position.as_dvec3());
+        let s = problem.surface_point(DVec2::new(sight_point.x, sight_point.z));
+        let step_m = CREST_SAMPLE_STEP_PER_SPACING * field.spacing_m();
+        path_is_clear_in_band(&problem, s, step_m, field.surface_height_bounds_m())
     }
 
     /// Screen distance, in pixels, of `m` from the segment a-b (all virtual positions); None when

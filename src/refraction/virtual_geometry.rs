@@ -428,6 +428,7 @@ fn append_under(
 ) {
     // Drawn triangles with their flags, before any subdivision.
     let mut drawn: Vec<([SubdivisionVertex; 3], u32)> = Vec::new();
+    let mut drawn_indices: Vec<[u32; 3]> = Vec::new();
     for triangle in &split.below_triangles {
         counts.triangles.under_water += 1;
         let mut under_water = 0;
@@ -484,6 +485,7 @@ fn append_under(
             }
         });
         drawn.push((corners, flags));
+        drawn_indices.push(*triangle);
     }
     let mut push = |corners: &[SubdivisionVertex; 3], flags: u32| {
         for v in corners {
@@ -504,13 +506,39 @@ fn append_under(
         }
         return;
     };
-    // Each triangle's subdivision is a function of its own edges: in parallel, output in order.
-    // The pieces keep the triangle's flags.
+    // The first split test of each edge once (neighbours share it), then each triangle's
+    // subdivision, a function of its own edges: in parallel, output in order. The pieces keep the
+    // triangle's flags.
+    let mut edge_of: std::collections::HashMap<(u32, u32), u32> = Default::default();
+    let mut edges: Vec<(SubdivisionVertex, SubdivisionVertex)> = Vec::new();
+    let triangle_edges: Vec<[u32; 3]> = drawn
+        .iter()
+        .zip(&drawn_indices)
+        .map(|((corners, _), indices)| {
+            std::array::from_fn(|k| {
+                let (a, b) = (indices[k], indices[(k + 1) % 3]);
+                *edge_of.entry((a.min(b), a.max(b))).or_insert_with(|| {
+                    edges.push((corners[k], corners[(k + 1) % 3]));
+                    (edges.len() - 1) as u32
+                })
+            })
+        })
+        .collect();
+    let first_splits: Vec<Option<SubdivisionVertex>> = if subdivider.settings.max_depth == 0 {
+        vec![None; edges.len()]
+    } else {
+        edges
+            .par_iter()
+            .map(|(a, b)| subdivider.split_edge(a, b))
+            .collect()
+    };
     let pieces: Vec<(Vec<[SubdivisionVertex; 3]>, SubdivisionStats)> = drawn
         .par_iter()
-        .map(|(corners, _)| {
+        .zip(&triangle_edges)
+        .map(|((corners, _), edge_indices)| {
             let mut pieces = Vec::new();
-            let stats = subdivider.subdivide(*corners, &mut pieces);
+            let first = edge_indices.map(|e| first_splits[e as usize]);
+            let stats = subdivider.subdivide_from(*corners, first, &mut pieces);
             (pieces, stats)
         })
         .collect();
@@ -526,7 +554,7 @@ fn append_under(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use glam::DVec3;
 
     use super::*;
@@ -541,8 +569,8 @@ mod tests {
 
     /// A steep Gaussian ridge along z, centred on x = `centre_x_m`: a lens that focuses rays, so
     /// points deep under it have three images.
-    struct Crest {
-        centre_x_m: f64,
+    pub(crate) struct Crest {
+        pub(crate) centre_x_m: f64,
     }
     const CREST_HEIGHT_M: f64 = 0.3;
     const CREST_WIDTH_M: f64 = 0.3;
@@ -588,7 +616,7 @@ mod tests {
         }
     }
 
-    fn grid(min: (f64, f64), max: (f64, f64), cells: (u32, u32)) -> MembraneGrid {
+    pub(crate) fn grid(min: (f64, f64), max: (f64, f64), cells: (u32, u32)) -> MembraneGrid {
         MembraneGrid {
             min_x: min.0,
             min_z: min.1,
@@ -599,7 +627,7 @@ mod tests {
         }
     }
 
-    fn setup(eye: Vec3) -> RefractionSetup {
+    pub(crate) fn setup(eye: Vec3) -> RefractionSetup {
         RefractionSetup {
             eye,
             n_above: N_AIR,

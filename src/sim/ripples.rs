@@ -367,6 +367,16 @@ impl HeightField for SumHeightField<'_> {
         let (rxx, rxz, rzz) = self.ripples.map_or((0.0, 0.0, 0.0), |r| r.hessian(x, z));
         (bxx + rxx, bxz + rxz, bzz + rzz)
     }
+    fn height_derivatives(&self, x: f64, z: f64) -> (f64, (f64, f64), (f64, f64, f64)) {
+        let (h, (gx, gz), (xx, xz, zz)) = self.base.height_derivatives(x, z);
+        match self.ripples {
+            None => (h, (gx, gz), (xx, xz, zz)),
+            Some(r) => {
+                let (rh, (rgx, rgz), (rxx, rxz, rzz)) = r.height_derivatives(x, z);
+                (h + rh, (gx + rgx, gz + rgz), (xx + rxx, xz + rxz, zz + rzz))
+            }
+        }
+    }
 }
 
 #[cfg(test)]

@@ -57,6 +57,11 @@ pub trait HeightField: Sync {
         let h_xz = 0.5 * ((xp_z - xm_z) / (2.0 * step_x) + (zp_x - zm_x) / (2.0 * step_z));
         (h_xx, h_xz, h_zz)
     }
+    /// Height, gradient and Hessian at once: what a Newton step needs. Defaults to the three
+    /// methods; fields that share work between them (one sin/cos per wave) override it.
+    fn height_derivatives(&self, x: f64, z: f64) -> (f64, (f64, f64), (f64, f64, f64)) {
+        (self.height(x, z), self.gradient(x, z), self.hessian(x, z))
+    }
 }
 
 /// The rectangle of the horizontal plane the membrane covers and its grid resolution (cells).
