@@ -18,7 +18,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use crate::draw::RenderedFrame;
-use crate::frame::{Method, RenderJob, SnellError};
+use crate::frame::{progress_bar, Method, RenderJob, SnellError};
 use crate::gpu::Renderer;
 use crate::output::position_error::{compare_positions, PositionComparison};
 
@@ -577,20 +577,6 @@ fn write_text(path: &Path, text: &str) -> Result<(), SnellError> {
             .map_err(|error| error.to_string())
     })?;
     Ok(())
-}
-
-fn progress_bar(len: u64, visible: bool) -> indicatif::ProgressBar {
-    if !visible {
-        return indicatif::ProgressBar::hidden();
-    }
-    let bar = indicatif::ProgressBar::new(len);
-    bar.set_style(
-        indicatif::ProgressStyle::with_template(
-            "{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} configurations: {msg}",
-        )
-        .expect("valid template"),
-    );
-    bar
 }
 
 #[cfg(test)]

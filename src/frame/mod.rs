@@ -831,7 +831,8 @@ fn membrane_vertices(membrane: &Membrane) -> Vec<MembraneVertex> {
         .collect()
 }
 
-fn progress_bar(len: u64, visible: bool) -> indicatif::ProgressBar {
+/// The progress bar of long CPU/GPU work (frames, configurations): hidden unless `visible`.
+pub(crate) fn progress_bar(len: u64, visible: bool) -> indicatif::ProgressBar {
     if !visible {
         return indicatif::ProgressBar::hidden();
     }
