@@ -12,6 +12,9 @@
 //!    [`reference`]  — the ray-traced reference over the same stage-2 output (CPU, rayon): `--method raytrace`.
 //! 5. [`output`]     — multi-layer OpenEXR frames, per-frame report, tone-mapped previews, image comparison.
 //!
+//! [`accuracy`] reproduces the thesis's accuracy study (error volumes of its Tables 4.1, 4.2, 4.5)
+//! for the linear and the exact method.
+//!
 //! [`check`] compares frames (EXR files, or a scene's renders against goldens) for CI: FLIP,
 //! Z/P tolerances, exact flag counts, JUnit.
 //!
@@ -24,6 +27,7 @@
 //! [`frame`] ties the stages together: one `render_frame` entry point used identically by the CLI
 //! and by the tests. [`interrupt`] turns Ctrl-C into a stop after the frame in flight.
 
+pub mod accuracy;
 pub mod camera;
 pub mod character;
 pub mod chart;

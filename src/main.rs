@@ -143,6 +143,19 @@ enum Command {
     /// commit the goldens, then run the same line without --bless in CI (no GPU needed: Mesa's
     /// lavapipe or llvmpipe render on the CPU). Exit codes as for `snell diff`.
     Check(snell::check::cli::CheckArgs),
+    /// Reproduce the thesis's accuracy study: error volumes of every row of its Tables 4.1, 4.2
+    /// and 4.5, for the linear method (the thesis's cells) and the exact one (Newton on Fermat's
+    /// principle), beside the published means, as a Markdown table.
+    ///
+    /// Each row is a refractor (flat disk of planar radius 142, membranes conforming to spheres as
+    /// bowls and as caps, square grids 284 a side) with the eye above it, n1 = 1.0, n2 = 1.51, and
+    /// a 400-unit cube of samples under it. For each sample V the method gives a virtual vertex V';
+    /// the computed vertex C is where V must be for the eye to see it at V' (exact intersection of
+    /// the ray E -> V' with the exact surface, exact refraction, foreshortening undone); the error
+    /// is |C - V|. Samples with no image, an extrapolated cell or several images are excluded and
+    /// counted. The output states every setup choice. Exit codes: 0 done, 2 bad option or CSV
+    /// path, 1 a write that failed.
+    Accuracy(snell::accuracy::cli::AccuracyArgs),
     /// Print every image of given world points through a frame's water: where each appears
     /// (virtual vertex), where its sight ray crosses the water (sight point), through which
     /// membrane facet, and whether an extrapolated ray made it.
@@ -231,6 +244,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Diff(args) => return ExitCode::from(snell::check::cli::run_diff(&args)),
         Command::Check(args) => return ExitCode::from(snell::check::cli::run_check(&args)),
+        Command::Accuracy(args) => return ExitCode::from(snell::accuracy::cli::run(&args)),
         Command::Locate(args) => return ExitCode::from(snell::tools::cli::run_locate(&args)),
         Command::Compare(args) => return ExitCode::from(snell::tools::cli::run_compare(&args)),
         Command::Export(args) => return ExitCode::from(snell::tools::cli::run_export(&args)),
