@@ -51,12 +51,36 @@ impl Camera {
 
     /// Unit direction of the sight ray through pixel coordinates `pixel` (same convention as `pixel_of`).
     pub fn ray_through_pixel(&self, pixel: Vec2, width: u32, height: u32) -> Vec3 {
+        self.pixel_rays(width, height).direction(pixel)
+    }
+
+    /// [`Self::ray_through_pixel`] for many pixels of one image: the inverse projection once.
+    pub fn pixel_rays(&self, width: u32, height: u32) -> PixelRays {
+        PixelRays {
+            world_from_clip: self.clip_from_world(width, height).inverse(),
+            eye: self.eye,
+            size: Vec2::new(width as f32, height as f32),
+        }
+    }
+}
+
+/// Sight rays through the pixels of one image (see [`Camera::pixel_rays`]).
+#[derive(Clone, Copy, Debug)]
+pub struct PixelRays {
+    world_from_clip: Mat4,
+    eye: Vec3,
+    size: Vec2,
+}
+
+impl PixelRays {
+    /// Unit direction of the sight ray through pixel coordinates `pixel` (x right, y down, pixel
+    /// centres at +0.5).
+    pub fn direction(&self, pixel: Vec2) -> Vec3 {
         let ndc = Vec2::new(
-            pixel.x / width as f32 * 2.0 - 1.0,
-            1.0 - pixel.y / height as f32 * 2.0,
+            pixel.x / self.size.x * 2.0 - 1.0,
+            1.0 - pixel.y / self.size.y * 2.0,
         );
-        let world_from_clip = self.clip_from_world(width, height).inverse();
-        let far = world_from_clip * ndc.extend(1.0).extend(1.0);
+        let far = self.world_from_clip * ndc.extend(1.0).extend(1.0);
         (far.xyz() / far.w - self.eye).normalize()
     }
 }

@@ -9,6 +9,7 @@
 //!    [`sim`]        — the ripples characters make (damped wave equation), stepped and checkpointed.
 //! 3. [`refraction`] — refraction rays, cells, sight-facet search, virtual vertices, flags (pure CPU, rayon).
 //! 4. [`gpu`]        — wgpu passes: true geometry, stencil of visible water, virtual geometry, Fresnel sky.
+//!    [`reference`]  — the ray-traced reference over the same stage-2 output (CPU, rayon): `--method raytrace`.
 //! 5. [`output`]     — multi-layer OpenEXR frames, per-frame report, tone-mapped previews, image comparison.
 //!
 //! [`accuracy`] reproduces the thesis's accuracy study (error volumes of its Tables 4.1, 4.2, 4.5)
@@ -16,6 +17,9 @@
 //!
 //! [`check`] compares frames (EXR files, or a scene's renders against goldens) for CI: FLIP,
 //! Z/P tolerances, exact flag counts, JUnit.
+//!
+//! [`chart`] measures speed against accuracy: every method and membrane resolution timed and
+//! compared with the ray-traced reference (`snell chart`), and a scene's `max_error_px` budget.
 //!
 //! [`tools`] checks snell from outside: every image of given points (`snell locate`), position
 //! error between frames (`snell compare`), a frame's geometry and camera for other tools (`snell export`).
@@ -26,6 +30,7 @@
 pub mod accuracy;
 pub mod camera;
 pub mod character;
+pub mod chart;
 pub mod check;
 pub mod color;
 pub mod draw;
@@ -35,6 +40,7 @@ pub mod interrupt;
 pub mod mesh;
 pub mod output;
 pub mod preview;
+pub mod reference;
 pub mod refraction;
 pub mod scene;
 pub mod sim;

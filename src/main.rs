@@ -58,8 +58,16 @@ enum Command {
         /// exact (Newton on Fermat's principle from each equal-t image, exact to ~1e-12, with
         /// adaptive subdivision of under-water triangles; vertices where Newton fails are drawn
         /// at the equal-t point and counted as newton_fallback in the report).
-        #[arg(long, default_value = "equal-t", value_name = "METHOD")]
-        method: String,
+        /// Or trace the frame on the CPU instead (no GPU needed): raytrace, the reference (the
+        /// exact wave surface by root finding, refracted rays through a BVH, the same shading),
+        /// or raytrace-membrane (the same tracer through the triangulated membrane with
+        /// interpolated normals, the surface the rasteriser draws). The ray-traced methods have
+        /// no virtual vertices: their flag counts are all 0 and the flag layers empty.
+        /// When the scene states `[quality] max_error_px` and no --method is given, snell measures
+        /// the shot and picks the coarsest membrane and cheapest method that meet the budget
+        /// (see `snell chart --help`); --method overrides that choice.
+        #[arg(long, value_name = "METHOD")]
+        method: Option<String>,
         /// --method exact only: split an under-water edge (recursively, at most 4 levels) while
         /// the exact image of its midpoint is farther than this many pixels from the straight
         /// virtual edge. Smaller is more accurate and slower; the report counts the triangles
@@ -183,6 +191,45 @@ enum Command {
     /// DCC tool, or render it elsewhere with the camera, to check snell's frames. Example:
     /// snell export scenes/pool.toml --frame 24 --out output/pool/export
     Export(snell::tools::cli::ExportArgs),
+    /// Chart speed against accuracy: render one frame with every method and several membrane
+    /// resolutions, time each and measure its position error against the ray-traced reference.
+    ///
+    /// Renders the frame with the linear method (equal-t) at 32x32, 64x64, 128x128, 256x256 and
+    /// 512x512 membrane cells and the scene's own resolution, the exact method at 32x32, 64x64
+    /// and the scene's own resolution,
+    /// and the ray-traced reference (exact surface), all in this process on the same renderer.
+    /// Seconds per frame: the CPU stages (water, refraction, virtual geometry; the tracer's own
+    /// work for the reference) plus the render with readback, wall clock, median of up to 5
+    /// repetitions (fewer once a configuration has taken 1.5 s), after one untimed warm-up render.
+    /// Position error: for each pixel, how far in pixels the reference shows the same world
+    /// point (sub-pixel, over pixels where both see the same object; see `snell compare`).
+    ///
+    /// Writes into DIR: speed_accuracy.csv (columns method,resolution,secs_per_frame,mean_px,
+    /// p99_px; errors over every pixel where both see the same object), speed_accuracy_detail.csv
+    /// (also maxima, pixel counts, the errors outside flagged pixels, the share of pixels that see
+    /// another object), and the chart as speed_accuracy.svg and speed_accuracy.png (seconds per
+    /// frame against mean error, log axes). Prints the table and, for the exact method at the
+    /// scene's resolution, its error outside flagged pixels and its speed-up over the reference.
+    ///
+    /// The same measurement drives a scene's budget: with `[quality] max_error_px = E` in the
+    /// scene, `snell render` tries membrane resolutions from the coarsest up (linear, then exact,
+    /// at each) and renders with the first whose 99th-percentile position error, worst of the
+    /// timeline's first, middle and last frames, is at most E pixels (the reference if none is);
+    /// the choice is printed, written into report.jsonl and the EXR headers, and cached in
+    /// DIR/quality_choice.json under the hash of the inputs.
+    Chart {
+        /// The scene file (TOML), e.g. scenes/pool.toml.
+        scene: PathBuf,
+        /// The frame to render (default: the middle of the scene's timeline).
+        #[arg(long, value_name = "N")]
+        frame: Option<u32>,
+        /// Image size in pixels.
+        #[arg(long, value_name = "WxH", default_value = "1280x720")]
+        size: String,
+        /// Output directory (default: output/<scene name>/chart/).
+        #[arg(long, value_name = "DIR")]
+        out: Option<PathBuf>,
+    },
 }
 
 fn main() -> ExitCode {
@@ -216,9 +263,15 @@ fn main() -> ExitCode {
             out,
             &size,
             png,
-            (&method, subdivision_px),
+            (method.as_deref(), subdivision_px),
             resume,
         ),
+        Command::Chart {
+            scene,
+            frame,
+            size,
+            out,
+        } => chart(&scene, frame, &size, out),
         Command::Preview {
             scene,
             port,
@@ -272,12 +325,16 @@ fn render(
     out: Option<PathBuf>,
     size: &str,
     png: bool,
-    (method, subdivision_px): (&str, f32),
+    (method_arg, subdivision_px): (Option<&str>, f32),
     resume: bool,
 ) -> Result<(), SnellError> {
     let (width, height) = frame::parse_size(size)?;
-    let method =
-        Method::parse(method).map_err(|e| SnellError::Argument(format!("--method: {e}")))?;
+    let method = match method_arg {
+        Some(text) => {
+            Method::parse(text).map_err(|e| SnellError::Argument(format!("--method: {e}")))?
+        }
+        None => Method::default(),
+    };
     if !(subdivision_px.is_finite() && subdivision_px > 0.0) {
         return Err(SnellError::Argument(format!(
             "--subdivision-px {subdivision_px}: expected a number of pixels > 0, e.g. --subdivision-px 0.25"
@@ -291,9 +348,36 @@ fn render(
         None => FrameRange::whole(job.timeline()),
     };
     let out_dir = out.unwrap_or_else(|| PathBuf::from("output").join(job.scene_name()));
-    let mut resume_command =
-        resume_command_line(scene_path, frames, &out_dir, width, height, png, method);
-    if method == Method::Exact
+    if let Some(max_error_px) = job.scene.quality.max_error_px {
+        if method_arg.is_some() {
+            eprintln!(
+                "note: --method {} given: the scene's max_error_px = {max_error_px} is not applied",
+                method.name()
+            );
+        } else {
+            // Checked before measuring, so an unusable output directory fails before any work.
+            snell::output::ensure_output_dir(&out_dir)?;
+            snell::output::check_writable(&out_dir)?;
+            if let Some(choice) =
+                snell::chart::budget::apply_budget(&mut job, width, height, &out_dir, true)?
+            {
+                println!("{}", choice.describe());
+            }
+        }
+    }
+    // The resume command names a method only when this one was given one: otherwise the resumed
+    // render applies the same budget (read from the cache) and renders what this one did.
+    let stated_method = method_arg.map(|_| job.method);
+    let mut resume_command = resume_command_line(
+        scene_path,
+        frames,
+        &out_dir,
+        width,
+        height,
+        png,
+        stated_method,
+    );
+    if job.method == Method::Exact
         && subdivision_px != snell::refraction::subdivision::DEFAULT_TOLERANCE_PX
     {
         resume_command.push_str(&format!(" --subdivision-px {subdivision_px}"));
@@ -391,7 +475,7 @@ fn resume_command_line(
     width: u32,
     height: u32,
     png: bool,
-    method: Method,
+    method: Option<Method>,
 ) -> String {
     let program = std::env::args().next().unwrap_or_else(|| "snell".into());
     let mut words = vec![program, "render".into(), scene_path.display().to_string()];
@@ -407,7 +491,7 @@ fn resume_command_line(
     if png {
         words.push("--png".into());
     }
-    if method != Method::default() {
+    if let Some(method) = method {
         words.extend(["--method".into(), method.name().to_string()]);
     }
     words.push("--resume".into());
@@ -428,6 +512,34 @@ fn shell_quoted(word: &str) -> String {
     } else {
         format!("'{}'", word.replace('\'', "'\\''"))
     }
+}
+
+fn chart(
+    scene_path: &Path,
+    frame: Option<u32>,
+    size: &str,
+    out: Option<PathBuf>,
+) -> Result<(), SnellError> {
+    let (width, height) = frame::parse_size(size)?;
+    let mut job = RenderJob::prepare(scene_path)?;
+    let timeline = *job.timeline();
+    let frame =
+        frame.unwrap_or(timeline.first_frame + (timeline.last_frame - timeline.first_frame) / 2);
+    let out_dir =
+        out.unwrap_or_else(|| PathBuf::from("output").join(job.scene_name()).join("chart"));
+    let scene_resolution = job.scene.water.resolution;
+    let outcome = snell::chart::run_chart(
+        &mut job,
+        &snell::chart::ChartOptions {
+            frame,
+            width,
+            height,
+            out_dir,
+            progress: true,
+        },
+    )?;
+    print!("{}", outcome.summary(scene_resolution));
+    Ok(())
 }
 
 fn info(scene_path: &Path) -> Result<(), SnellError> {

@@ -386,3 +386,67 @@ fn every_shipped_scene_renders() {
         ]
     );
 }
+
+#[test]
+fn raytrace_renders_tiny_into_an_exr_with_every_layer() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write_scene(dir.path(), "tiny.toml", TINY);
+    let out = dir.path().join("frames");
+    let output = render_small(
+        &scene,
+        &out,
+        &["--frames", "2", "--method", "raytrace"],
+        dir.path(),
+    );
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let (frame, meta) = snell::output::exr::read_frame_exr(&out.join("tiny.0002.exr")).unwrap();
+    assert_eq!(meta.method, "raytrace/exact-surface");
+    assert_eq!((frame.width, frame.height), (64, 36));
+    let pixels = 64 * 36;
+    assert_eq!(frame.beauty_rgba.len(), pixels);
+    assert_eq!(frame.distance_m.len(), pixels);
+    assert_eq!(frame.position.len(), pixels);
+    assert_eq!(frame.flags.len(), pixels);
+    assert_eq!(frame.object.len(), pixels);
+    assert!(frame
+        .beauty_rgba
+        .iter()
+        .all(|p| p.iter().all(|c| c.is_finite()) && p[3] == 1.0));
+    assert!(
+        frame.flags.iter().all(|&f| f == 0),
+        "the reference has no flags"
+    );
+    // tiny.toml: the pool (object 1) seen through the water, about a fifth of the image (443
+    // of 2,304 pixels when written; deck and sky are the rest), and the ball (object 2) under it.
+    let through_water = (0..pixels)
+        .filter(|&i| frame.object[i] != 0 && frame.position[i][1] < -0.05)
+        .count();
+    assert!(
+        through_water > pixels / 10,
+        "{through_water} pixels see under water"
+    );
+    assert!(frame.object.contains(&2), "the ball is in view");
+    for i in 0..pixels {
+        let seen = frame.object[i] != 0;
+        assert_eq!(
+            seen,
+            frame.position[i][0].is_finite(),
+            "pixel {i}: P and object disagree"
+        );
+        if seen {
+            assert!(frame.distance_m[i] > 0.0 && frame.distance_m[i].is_finite());
+        }
+    }
+    let report = std::fs::read_to_string(out.join("report.jsonl")).unwrap();
+    let row: serde_json::Value = serde_json::from_str(report.lines().next().unwrap()).unwrap();
+    assert_eq!(row["method"], "raytrace/exact-surface");
+    for group in ["triangles", "vertices"] {
+        for (key, count) in row["counts"][group].as_object().unwrap() {
+            assert_eq!(count, 0, "{group}.{key}");
+        }
+    }
+}

@@ -16,7 +16,63 @@ pub struct BenchFigures {
     pub refraction: RefractionFigures,
     pub frame: FrameFigures,
     pub characters: CharacterFigures,
+    pub reference: ReferenceFigures,
     pub exact: ExactFigures,
+}
+
+/// The ray-traced reference (`--method raytrace`, CPU) on the frame-time scene at 1280x720.
+#[derive(Debug, Serialize)]
+pub struct ReferenceFigures {
+    pub scene: String,
+    pub size: [u32; 2],
+    pub frames_measured: u32,
+    /// Rayon threads the tracer ran on.
+    pub threads: usize,
+    /// Refracted rays per second of wall-clock trace time, median over the frames. A refracted ray
+    /// is a pixel's sight ray that met the water surface (the exact one, by root finding) and was
+    /// refracted and traced on through the BVH to what it sees under water (or to nothing);
+    /// the time divided is the whole frame's trace: BVH build, every primary ray (those that see
+    /// objects or sky above water too), root finding, refracted rays and shading.
+    pub refracted_rays_per_sec: f64,
+    /// Median wall-clock seconds of the whole traced frame (the tracer only: the water membrane
+    /// and posing before it are in the frame-time figures' stages).
+    pub secs_per_frame: f64,
+    /// Median process CPU seconds (user + system, every thread) of the traced frame.
+    pub cpu_secs_per_frame: f64,
+    /// Refracted rays per second had every one of the `threads` threads a core of its own:
+    /// refracted rays / (CPU seconds / threads). Equals `refracted_rays_per_sec` on an idle
+    /// machine; on a machine shared with other work it says what the tracer itself achieves.
+    pub refracted_rays_per_sec_unshared: f64,
+    /// Refracted rays in a frame (median frame), of `size[0] * size[1]` primary rays.
+    pub refracted_rays_per_frame: u64,
+    /// Triangles in the frame's BVH and its build time (median), milliseconds.
+    pub triangles: usize,
+    pub bvh_build_ms: f64,
+    /// Exact-surface height-field evaluations per refracted ray (root finding cost).
+    pub surface_evaluations_per_refracted_ray: f64,
+}
+
+impl ReferenceFigures {
+    fn to_text(&self) -> String {
+        format!(
+            "ray-traced reference (raytrace, CPU, {} threads) of {} at {}x{} (median of {} frames):\n\
+             \x20 {:.2} M refracted rays/s, {:.3} s per frame ({} refracted rays; {} triangles, BVH build {:.1} ms; {:.1} surface evaluations per refracted ray)\n\
+             \x20 {:.3} CPU s per frame: {:.2} M refracted rays/s with a core per thread\n",
+            self.threads,
+            self.scene,
+            self.size[0],
+            self.size[1],
+            self.frames_measured,
+            self.refracted_rays_per_sec / 1e6,
+            self.secs_per_frame,
+            self.refracted_rays_per_frame,
+            self.triangles,
+            self.bvh_build_ms,
+            self.surface_evaluations_per_refracted_ray,
+            self.cpu_secs_per_frame,
+            self.refracted_rays_per_sec_unshared / 1e6,
+        )
+    }
 }
 
 /// The exact method's CPU cost beside the equal-t method's, on the frame-time scene at 1280x720:
@@ -156,7 +212,7 @@ impl BenchFigures {
              ripples: {:.0} steps/s on a 256x256 grid\n\
              {}\
              skinning + ripples: {:.1} % of the {} frame\n\
-             {}",
+             {}{}",
             self.refraction.vertices_per_sec / 1e6,
             self.refraction.scenario,
             self.refraction.speedup_vs_brute_force,
@@ -166,6 +222,7 @@ impl BenchFigures {
             characters.frame.to_text(),
             100.0 * characters.skinning_and_ripples_share,
             characters.frame.scene,
+            self.reference.to_text(),
             self.exact.to_text(),
         )
     }
@@ -241,10 +298,12 @@ pub fn run(
     let share =
         dynamics_ms / (dynamics_ms + stage("water") + stage("refraction") + stage("render"));
     let (skinning, ripple_steps) = character_throughput(fox_path)?;
+    let reference = reference_figures(scene_path, frames)?;
     let exact = exact_times(scene_path, frames)?;
     Ok(BenchFigures {
         refraction,
         frame,
+        reference,
         characters: CharacterFigures {
             skinning_vertex_influences_per_sec: skinning,
             ripple_steps_per_sec_256: ripple_steps,
@@ -276,7 +335,7 @@ fn frame_times(
     for (i, frame) in (timeline.first_frame..timeline.first_frame + frames + 1).enumerate() {
         let frame = frame.min(timeline.last_frame);
         let mut refracted = job.refract(frame, width, height, previous.as_ref())?;
-        job.render_refracted(renderer, &mut refracted, width, height)?;
+        job.render_refracted(&mut *renderer, &mut refracted, width, height)?;
         if i > 0 {
             for (stage, secs) in &refracted.stage_secs {
                 per_stage.entry(stage.clone()).or_default().push(secs * 1e3);
@@ -303,4 +362,65 @@ fn frame_times(
         median_stage_ms,
         refraction_plus_render_ms: median(&mut totals),
     })
+}
+
+/// Traces `frames` frames of a scene at 1280x720 with `--method raytrace` (after one warm-up
+/// frame) and takes the medians.
+pub fn reference_figures(scene_path: &Path, frames: u32) -> Result<ReferenceFigures, SnellError> {
+    let (width, height) = (1280, 720);
+    let mut job = RenderJob::prepare(scene_path)?;
+    job.method = super::Method::Raytrace;
+    let timeline = *job.timeline();
+    let frames = frames
+        .max(1)
+        .min(timeline.last_frame - timeline.first_frame + 1);
+    let (mut rates, mut secs, mut rays, mut builds, mut evaluations) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let (mut cpu_secs, mut unshared) = (Vec::new(), Vec::new());
+    let threads = rayon::current_num_threads();
+    let mut triangles = 0;
+    for (i, frame) in (timeline.first_frame..timeline.first_frame + frames + 1).enumerate() {
+        let frame = frame.min(timeline.last_frame);
+        let refracted = job.refract(frame, width, height, None)?;
+        let cpu_before = process_cpu_secs();
+        let traced = job.trace_refracted(&refracted, width, height)?;
+        let cpu = process_cpu_secs() - cpu_before;
+        let stats = traced.stats;
+        if i > 0 {
+            cpu_secs.push(cpu);
+            unshared.push(stats.refracted_rays as f64 / (cpu / threads as f64));
+            rates.push(stats.refracted_rays as f64 / stats.total_secs);
+            secs.push(stats.total_secs);
+            rays.push(stats.refracted_rays as f64);
+            builds.push(stats.build_secs * 1e3);
+            evaluations.push(stats.surface_evaluations as f64 / stats.refracted_rays.max(1) as f64);
+            triangles = stats.triangles;
+        }
+    }
+    Ok(ReferenceFigures {
+        scene: job.scene_name().to_string(),
+        size: [width, height],
+        frames_measured: frames,
+        threads,
+        cpu_secs_per_frame: median(&mut cpu_secs),
+        refracted_rays_per_sec_unshared: median(&mut unshared),
+        refracted_rays_per_sec: median(&mut rates),
+        secs_per_frame: median(&mut secs),
+        refracted_rays_per_frame: median(&mut rays) as u64,
+        triangles,
+        bvh_build_ms: median(&mut builds),
+        surface_evaluations_per_refracted_ray: median(&mut evaluations),
+    })
+}
+
+/// User + system CPU seconds this process has used, over all its threads.
+fn process_cpu_secs() -> f64 {
+    let mut usage = std::mem::MaybeUninit::<libc::rusage>::zeroed();
+    // SAFETY: getrusage fills the struct it is given; RUSAGE_SELF is always valid.
+    let usage = unsafe {
+        libc::getrusage(libc::RUSAGE_SELF, usage.as_mut_ptr());
+        usage.assume_init()
+    };
+    let secs = |t: libc::timeval| t.tv_sec as f64 + t.tv_usec as f64 * 1e-6;
+    secs(usage.ru_utime) + secs(usage.ru_stime)
 }

@@ -7,6 +7,7 @@ pub mod bench;
 pub mod characters;
 pub mod inputs;
 pub mod resume;
+pub mod traced;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -135,6 +136,8 @@ pub struct RefractedFrame {
     /// Chosen images per vertex, for the next frame's popping test.
     pub tracking: VertexTracking,
     pub stage_secs: BTreeMap<String, f64>,
+    /// What the ray-traced methods trace instead of drawing `draw` (None for the others).
+    pub trace: Option<traced::TraceInputs>,
 }
 
 /// One frame's water and world, before refraction: what [`RenderJob::frame_water`] returns.
@@ -176,10 +179,20 @@ pub enum Method {
     /// Exact virtual vertices: from each equal-t image's sight point, Newton on Fermat's principle
     /// over the exact surface (ALGORITHM §6), with adaptive subdivision of under-water triangles.
     Exact,
+    /// The ray-traced reference on the CPU through the exact surface (no virtual geometry).
+    Raytrace,
+    /// The ray-traced reference through the triangulated membrane with interpolated normals.
+    RaytraceMembrane,
 }
 
 impl Method {
-    pub const ALL: [Method; 3] = [Method::EqualT, Method::ThesisPlane, Method::Exact];
+    pub const ALL: [Method; 5] = [
+        Method::EqualT,
+        Method::ThesisPlane,
+        Method::Exact,
+        Method::Raytrace,
+        Method::RaytraceMembrane,
+    ];
 
     /// The short name used on the command line and in the preview (`equal-t`, `thesis-plane`).
     pub fn name(self) -> &'static str {
@@ -187,6 +200,8 @@ impl Method {
             Method::EqualT => "equal-t",
             Method::ThesisPlane => "thesis-plane",
             Method::Exact => "exact",
+            Method::Raytrace => "raytrace",
+            Method::RaytraceMembrane => "raytrace-membrane",
         }
     }
 
@@ -196,6 +211,8 @@ impl Method {
             Method::EqualT => "virtual-vertices/equal-t",
             Method::ThesisPlane => "virtual-vertices/thesis-plane",
             Method::Exact => "virtual-vertices/exact",
+            Method::Raytrace => "raytrace/exact-surface",
+            Method::RaytraceMembrane => "raytrace/membrane",
         }
     }
 
@@ -209,7 +226,27 @@ impl Method {
             Method::Exact => {
                 "exact virtual vertices (Newton on Fermat's principle from each equal-t image) with adaptive subdivision"
             }
+            Method::Raytrace => {
+                "CPU ray-traced reference through the exact wave surface (no virtual vertices: flag counts are 0)"
+            }
+            Method::RaytraceMembrane => {
+                "CPU ray tracer through the triangulated membrane with interpolated normals (flag counts are 0)"
+            }
         }
+    }
+
+    /// The water the ray-traced methods meet; `None` for the virtual-vertex methods (GPU).
+    pub fn traced_water(self) -> Option<crate::reference::WaterModel> {
+        match self {
+            Method::EqualT | Method::ThesisPlane | Method::Exact => None,
+            Method::Raytrace => Some(crate::reference::WaterModel::Exact),
+            Method::RaytraceMembrane => Some(crate::reference::WaterModel::Membrane),
+        }
+    }
+
+    /// Whether frames of this method are drawn by the GPU renderer (the others trace on the CPU).
+    pub fn uses_gpu(self) -> bool {
+        self.traced_water().is_none()
     }
 
     /// Parses [`Method::name`]; the error lists the choices.
@@ -230,6 +267,8 @@ impl Method {
         match self {
             Method::EqualT => CellMode::EqualT,
             Method::ThesisPlane => CellMode::Thesis,
+            // Never asked: the ray-traced methods build no refraction field.
+            Method::Raytrace | Method::RaytraceMembrane => CellMode::EqualT,
             Method::Exact => CellMode::EqualT,
         }
     }
@@ -238,7 +277,10 @@ impl Method {
     /// [`Method::Exact`] only).
     fn placement(self, subdivision: SubdivisionSettings) -> Placement {
         match self {
-            Method::EqualT | Method::ThesisPlane => Placement::Linear,
+            // The ray-traced methods are never asked: they place no vertices.
+            Method::EqualT | Method::ThesisPlane | Method::Raytrace | Method::RaytraceMembrane => {
+                Placement::Linear
+            }
             Method::Exact => Placement::Exact(subdivision),
         }
     }
@@ -257,9 +299,14 @@ pub struct RenderJob {
     pub method: Method,
     /// How finely [`Method::Exact`] subdivides under-water triangles (ignored by the others).
     pub subdivision: SubdivisionSettings,
+    /// Set when the scene's `max_error_px` chose the method and membrane resolution
+    /// ([`crate::chart::budget::apply_budget`]); reported in EXR headers and report rows.
+    pub quality_choice: Option<crate::chart::budget::QualityChoice>,
     /// Heights the refraction search must cover for the static objects (characters and ripples
     /// widen it per frame).
     query_y_range: (f32, f32),
+    /// The textures as the ray-traced methods sample them, made on first use.
+    traced_textures: std::sync::OnceLock<traced::TracedTextures>,
     /// The scene file and every file it references, hashed once at load (frames' input hash,
     /// simulation checkpoint key).
     scene_files: inputs::SceneFilesDigest,
@@ -303,7 +350,9 @@ impl RenderJob {
             dynamics,
             method: Method::default(),
             subdivision: SubdivisionSettings::default(),
+            quality_choice: None,
             query_y_range: (bottom, top),
+            traced_textures: std::sync::OnceLock::new(),
             scene_files,
         })
     }
@@ -327,6 +376,11 @@ impl RenderJob {
             _ => self.method_label().to_string(),
         };
         inputs::input_hash(&self.scene_files, width, height, &method)
+    }
+
+    /// The digest of the scene file and every file it references (as hashed at load).
+    pub fn scene_files_digest(&self) -> inputs::SceneFilesDigest {
+        self.scene_files
     }
 
     /// Reads and writes simulation checkpoints under `out_dir` from now on (a note when stale
@@ -439,6 +493,33 @@ impl RenderJob {
     ) -> Result<RefractedFrame, SnellError> {
         let mut stage_secs = BTreeMap::new();
         let water = self.frame_water(frame, &mut stage_secs)?;
+        if self.method.traced_water().is_some() {
+            // The tracer needs no refraction field or virtual geometry: it traces the frame.
+            let FrameWater {
+                time_secs,
+                camera,
+                objects,
+                waves_now,
+                ripples,
+                membrane,
+                ..
+            } = water;
+            let inputs = traced::TraceInputs {
+                // The frame's objects are the static ones, then the posed characters.
+                posed: objects[self.objects.len()..].to_vec(),
+                waves: waves_now,
+                ripples,
+                membrane,
+            };
+            return Ok(self.traced_frame(
+                frame,
+                time_secs,
+                camera,
+                (width, height),
+                inputs,
+                stage_secs,
+            ));
+        }
         let (time_secs, camera, objects, membrane) = (
             water.time_secs,
             water.camera,
@@ -494,6 +575,7 @@ impl RenderJob {
             image_size: (width, height),
             tracking: geometry.tracking,
             stage_secs,
+            trace: None,
         })
     }
 
@@ -506,22 +588,34 @@ impl RenderJob {
         width: u32,
         height: u32,
     ) -> Result<Option<VertexTracking>, SnellError> {
-        if frame <= self.scene.timeline.first_frame {
+        if frame <= self.scene.timeline.first_frame || !self.method.uses_gpu() {
+            // The ray-traced methods have no virtual vertices that could pop.
             return Ok(None);
         }
         Ok(Some(self.refract(frame - 1, width, height, None)?.tracking))
     }
 
-    /// Renders one frame on `renderer` (textures must have been set with [`Self::upload_textures`]).
-    pub fn render_refracted(
+    /// Renders one frame on `renderer` (textures must have been set with [`Self::upload_textures`]),
+    /// or, for the ray-traced methods, traces it on the CPU (no renderer needed: pass `None`).
+    pub fn render_refracted<'r>(
         &self,
-        renderer: &mut Renderer,
+        renderer: impl Into<Option<&'r mut Renderer>>,
         refracted: &mut RefractedFrame,
         width: u32,
         height: u32,
     ) -> Result<RenderedFrame, SnellError> {
         let clock = Instant::now();
-        let rendered = renderer.render(&refracted.draw, &refracted.view, width, height)?;
+        let rendered = if refracted.trace.is_some() {
+            self.trace_refracted(refracted, width, height)?.rendered
+        } else {
+            let renderer = renderer.into().ok_or_else(|| {
+                SnellError::Argument(format!(
+                    "method {} draws on the GPU, but no renderer was given",
+                    self.method.name()
+                ))
+            })?;
+            renderer.render(&refracted.draw, &refracted.view, width, height)?
+        };
         refracted
             .stage_secs
             .insert("render".to_string(), clock.elapsed().as_secs_f64());
@@ -535,9 +629,9 @@ impl RenderJob {
 
     /// Renders a single frame alone (popping judged against frame - 1 recomputed). Textures must
     /// have been set once with [`Self::upload_textures`]: they do not change between frames.
-    pub fn render_frame(
+    pub fn render_frame<'r>(
         &self,
-        renderer: &mut Renderer,
+        renderer: impl Into<Option<&'r mut Renderer>>,
         frame: u32,
         width: u32,
         height: u32,
@@ -599,7 +693,15 @@ impl RenderJob {
                     self.input_hash(refracted.image_size.0, refracted.image_size.1)
                         .hex(),
                 ),
-            ],
+            ]
+            .into_iter()
+            .chain(self.quality_choice.as_ref().map(|choice| {
+                (
+                    crate::chart::budget::CHOICE_ATTRIBUTE.to_string(),
+                    choice.to_json().to_string(),
+                )
+            }))
+            .collect(),
         }
     }
 
@@ -618,6 +720,7 @@ impl RenderJob {
             size: [width, height],
             method: self.method_label().to_string(),
             input_hash: Some(self.input_hash(width, height).hex()),
+            quality: self.quality_choice.as_ref().map(|choice| choice.to_json()),
         }
     }
 
@@ -728,7 +831,8 @@ fn membrane_vertices(membrane: &Membrane) -> Vec<MembraneVertex> {
         .collect()
 }
 
-fn progress_bar(len: u64, visible: bool) -> indicatif::ProgressBar {
+/// The progress bar of long CPU/GPU work (frames, configurations): hidden unless `visible`.
+pub(crate) fn progress_bar(len: u64, visible: bool) -> indicatif::ProgressBar {
     if !visible {
         return indicatif::ProgressBar::hidden();
     }

@@ -302,8 +302,14 @@ impl RenderJob {
         let mut interrupted = false;
         let started = Instant::now();
         if !to_render.is_empty() {
-            let mut renderer = Renderer::new()?;
-            self.upload_textures(&mut renderer)?;
+            // The ray-traced methods render on the CPU: no GPU needed (nor set up).
+            let mut renderer = if self.method.uses_gpu() {
+                let mut renderer = Renderer::new()?;
+                self.upload_textures(&mut renderer)?;
+                Some(renderer)
+            } else {
+                None
+            };
             let bar = super::progress_bar(to_render.len() as u64, progress);
             // Frames are encoded and written on a second thread while the next one is refracted
             // and rendered (EXR compression costs about as much as the rest of a frame). The
@@ -330,7 +336,7 @@ impl RenderJob {
                         _ => self.previous_tracking(frame, width, height),
                     };
                     let result = previous.and_then(|previous| {
-                        self.refract_and_render(&mut renderer, frame, width, height, previous)
+                        self.refract_and_render(renderer.as_mut(), frame, width, height, previous)
                     });
                     let (refracted, frame_pixels) = match result {
                         Ok(done) => done,
@@ -387,7 +393,7 @@ impl RenderJob {
     /// Refracts and renders `frame` with `previous` (the tracking of frame - 1) for popping.
     fn refract_and_render(
         &self,
-        renderer: &mut Renderer,
+        renderer: Option<&mut Renderer>,
         frame: u32,
         width: u32,
         height: u32,

@@ -18,7 +18,7 @@
 mod device;
 pub mod shaders;
 pub mod shading;
-mod textures;
+pub(crate) mod textures;
 
 use glam::{Mat4, Vec3};
 

@@ -61,6 +61,31 @@ fn resized(texture: &Texture, width: u32, height: u32) -> Vec<u8> {
     image::imageops::resize(&image, width, height, image::imageops::FilterType::Triangle).into_raw()
 }
 
+/// The sRGB bytes of every mip level of `texture` as the GPU stores it in the array: resized to
+/// the array's `width` x `height`, then halved by [`downsample`] down to 1x1 (`1 + log2(max side)`
+/// levels). The CPU reference tracer samples these same bytes.
+pub(crate) fn mip_chain(texture: &Texture, width: u32, height: u32) -> Vec<(Vec<u8>, u32, u32)> {
+    let to_linear: [f32; 256] = std::array::from_fn(|i| srgb_to_linear(i as u8));
+    let mip_level_count = 32 - width.max(height).leading_zeros();
+    let mut levels = vec![(resized(texture, width, height), width, height)];
+    while levels.len() < mip_level_count as usize {
+        let (pixels, w, h) = levels.last().expect("level 0 is there");
+        let next = downsample(pixels, *w, *h, &to_linear);
+        levels.push(next);
+    }
+    levels
+}
+
+/// The single white texel used when a scene has no textures (untextured materials are tints).
+pub(crate) fn white_texture() -> Texture {
+    Texture {
+        name: "white".to_string(),
+        width: 1,
+        height: 1,
+        rgba8_srgb: vec![255; 4],
+    }
+}
+
 fn validate_texture(index: usize, texture: &Texture) -> Result<(), GpuError> {
     let expected = texture.width as usize * texture.height as usize * 4;
     if texture.width == 0 || texture.height == 0 || texture.rgba8_srgb.len() != expected {
@@ -81,12 +106,7 @@ pub(crate) fn upload_textures(
     queue: &wgpu::Queue,
     textures: &[Texture],
 ) -> Result<TextureArray, GpuError> {
-    let white = Texture {
-        name: "white".to_string(),
-        width: 1,
-        height: 1,
-        rgba8_srgb: vec![255; 4],
-    };
+    let white = white_texture();
     let textures: &[Texture] = if textures.is_empty() {
         std::slice::from_ref(&white)
     } else {
@@ -136,11 +156,10 @@ pub(crate) fn upload_textures(
         view_formats: &[],
     });
 
-    let to_linear: [f32; 256] = std::array::from_fn(|i| srgb_to_linear(i as u8));
     for (layer, texture) in textures.iter().enumerate() {
-        let mut pixels = resized(texture, width, height);
-        let (mut level_width, mut level_height) = (width, height);
-        for mip_level in 0..mip_level_count {
+        for (mip_level, (pixels, level_width, level_height)) in
+            (0u32..).zip(mip_chain(texture, width, height))
+        {
             queue.write_texture(
                 wgpu::TexelCopyTextureInfo {
                     texture: &gpu_texture,
@@ -164,10 +183,6 @@ pub(crate) fn upload_textures(
                     depth_or_array_layers: 1,
                 },
             );
-            if mip_level + 1 < mip_level_count {
-                (pixels, level_width, level_height) =
-                    downsample(&pixels, level_width, level_height, &to_linear);
-            }
         }
     }
     let view = gpu_texture.create_view(&wgpu::TextureViewDescriptor {

@@ -33,6 +33,10 @@ pub struct FrameReport {
     /// of this render from a row of an earlier one with other inputs. Absent in older reports.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub input_hash: Option<String>,
+    /// The configuration chosen for the scene's `max_error_px` and the errors behind the choice
+    /// (`crate::chart::budget::QualityChoice`); absent when the scene states no budget.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub quality: Option<serde_json::Value>,
 }
 
 /// Keeps `DIR/report.jsonl` up to date frame by frame.
@@ -152,6 +156,7 @@ mod tests {
             size: [320, 180],
             method: method.into(),
             input_hash: None,
+            quality: None,
         }
     }
 

@@ -211,7 +211,8 @@ impl Worker {
     }
 
     fn render(&mut self, shared: &Shared, key: FrameKey) -> Result<CachedFrame, SnellError> {
-        if self.renderer.is_none() {
+        // The ray-traced methods render on the CPU and need no GPU.
+        if self.renderer.is_none() && key.method.uses_gpu() {
             let problem = shared.lock().renderer_problem.clone().unwrap_or_default();
             return Err(SnellError::Argument(format!("no GPU renderer: {problem}")));
         }
@@ -219,11 +220,15 @@ impl Worker {
         let (width, height) = (shared.width, shared.height);
         let job = self.job.as_mut().expect("a task implies a job");
         job.method = key.method;
-        let renderer = self.renderer.as_mut().expect("checked above");
-        if !self.textures_uploaded {
-            job.upload_textures(renderer)?;
-            self.textures_uploaded = true;
-        }
+        let renderer = self.renderer.as_mut().filter(|_| key.method.uses_gpu());
+        let renderer = match renderer {
+            Some(renderer) if !self.textures_uploaded => {
+                job.upload_textures(renderer)?;
+                self.textures_uploaded = true;
+                Some(renderer)
+            }
+            other => other,
+        };
         let mut refracted = job.refract(key.frame, width, height, previous.as_deref())?;
         let rendered = job.render_refracted(renderer, &mut refracted, width, height)?;
         let counts = refracted.counts;

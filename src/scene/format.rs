@@ -21,6 +21,15 @@ pub(crate) struct RawScene {
     pub sun: RawSun,
     pub object: Option<Vec<RawObject>>,
     pub character: Option<Vec<RawCharacter>>,
+    pub quality: Option<RawQuality>,
+}
+
+/// `[quality]`: how accurate the scene must be, so snell models no more than it needs.
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawQuality {
+    /// Screen-space position error allowed against the ray-traced reference, pixels.
+    pub max_error_px: Option<f64>,
 }
 
 #[derive(Debug, Default, Deserialize)]

@@ -48,6 +48,17 @@ pub struct Scene {
     /// Skinned glTF characters (loaded by the frame stage, every frame posed anew).
     pub characters: Arc<[CharacterSpec]>,
     lighting: Lighting,
+    /// `[quality]`: the accuracy the scene asks for (none: render as the file says).
+    pub quality: QualitySpec,
+}
+
+/// `[quality]`, validated.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct QualitySpec {
+    /// The largest screen-space position error, in pixels, that 99 % of the pixels may have against
+    /// the ray-traced reference. When set, `snell render` measures the shot and picks the coarsest
+    /// membrane and the cheapest method that meet it (see `crate::chart::budget`).
+    pub max_error_px: Option<f64>,
 }
 
 /// Which animation of a glTF file a character plays.
@@ -761,6 +772,35 @@ mod tests {
                 .contains("object[0].coping_height_m: the deck must stand above"),
             "{e}"
         );
+    }
+
+    #[test]
+    fn a_quality_budget_is_read_and_bad_ones_are_refused_at_their_line() {
+        let scene = Scene::parse("[quality]\nmax_error_px = 0.25\n", Path::new("q.toml")).unwrap();
+        assert_eq!(scene.quality.max_error_px, Some(0.25));
+        assert_eq!(
+            Scene::parse("", Path::new("q.toml")).unwrap().quality,
+            QualitySpec::default()
+        );
+        for (value, problem) in [
+            ("0", "must be more than 0"),
+            ("-1", "must be more than 0"),
+            ("1e6", "at most 1000"),
+            ("nan", "must be a finite number"),
+            ("-inf", "must be a finite number"),
+        ] {
+            let text = format!("name = \"q\"\n[quality]\nmax_error_px = {value}\n");
+            let e = Scene::parse(&text, Path::new("q.toml"))
+                .unwrap_err()
+                .to_string();
+            assert!(e.starts_with("q.toml:3:"), "{value}: {e}");
+            assert!(
+                e.contains("quality.max_error_px") && e.contains(problem),
+                "{value}: {e}"
+            );
+        }
+        let e = Scene::parse("[quality]\nmax_error = 1\n", Path::new("q.toml")).unwrap_err();
+        assert!(e.to_string().starts_with("q.toml:2:"), "{e}");
     }
 
     #[test]

@@ -13,8 +13,8 @@ use super::format::{
 use super::primitives::DEFAULT_MAX_EDGE_M;
 use super::textures::{srgb_to_linear3, ImageSpec, LaneSpec, TextureSpec, TilesSpec};
 use super::{
-    AnimationChoice, CharacterSpec, ObjectSpec, PathKey, Playback, RippleSpec, Scene, SceneError,
-    ShapeSpec, WaterSpec, WaveSpec,
+    AnimationChoice, CharacterSpec, ObjectSpec, PathKey, Playback, QualitySpec, RippleSpec, Scene,
+    SceneError, ShapeSpec, WaterSpec, WaveSpec,
 };
 use crate::draw::Lighting;
 use crate::timeline::{CameraKey, Timeline};
@@ -86,6 +86,7 @@ pub(crate) fn validate(raw: RawScene, map: &SourceMap<'_>) -> Result<Scene> {
     let water = water(&raw.water, has_characters, map)?;
     let camera_keys = camera_keys(raw.camera.as_deref(), &timeline, &water, map)?;
     let lighting = lighting(&raw, map)?;
+    let quality = quality(&raw, map)?;
     let objects = match &raw.object {
         Some(objects) => objects
             .iter()
@@ -111,7 +112,30 @@ pub(crate) fn validate(raw: RawScene, map: &SourceMap<'_>) -> Result<Scene> {
         objects: Arc::from(objects),
         characters: Arc::from(characters),
         lighting,
+        quality,
     })
+}
+
+/// Budgets past this are surely a typo: an error of 1,000 pixels is a different picture.
+const MAX_ERROR_PX_LIMIT: f64 = 1000.0;
+
+fn quality(raw: &RawScene, map: &SourceMap<'_>) -> Result<QualitySpec> {
+    let path = KeyPath::root().key("quality");
+    let max_error_px = raw.quality.as_ref().and_then(|q| q.max_error_px);
+    if let Some(error_px) = max_error_px {
+        // NaN and infinities are refused before (check_numbers_finite), with their position.
+        if !(error_px > 0.0 && error_px <= MAX_ERROR_PX_LIMIT) {
+            return Err(map.error(
+                &path.key("max_error_px"),
+                format!(
+                    "must be more than 0 and at most {MAX_ERROR_PX_LIMIT} pixels (got {error_px})"
+                ),
+                "set e.g. max_error_px = 0.5 (99 % of pixels within half a pixel of the reference), \
+                 or remove it to render at the scene's own resolution and method",
+            ));
+        }
+    }
+    Ok(QualitySpec { max_error_px })
 }
 
 fn scene_name(name: Option<String>, map: &SourceMap<'_>) -> Result<String> {

@@ -352,6 +352,37 @@ impl HeightField for RippleField<'_> {
     fn height_derivatives(&self, x: f64, z: f64) -> (f64, (f64, f64), (f64, f64, f64)) {
         self.sample_derivatives(x, z)
     }
+    fn height_and_gradient(&self, x: f64, z: f64) -> (f64, (f64, f64)) {
+        let (h, gx, gz) = self.sample(x, z);
+        (h, (gx, gz))
+    }
+}
+
+/// Largest over t in [0, 1] of the sums of |Catmull-Rom weights|, of |first-derivative weights|
+/// and of |second-derivative weights|, rounded up (checked by a test against a fine sampling).
+const CATMULL_ROM_ABS_SUMS: (f64, f64, f64) = (1.25, 3.0, 12.0);
+
+impl RippleField<'_> {
+    /// Largest |height| of the field, metres (the nodes': Catmull-Rom overshoots them by at most
+    /// a quarter, see [`Self::slope_and_curvature_bounds`]'s weights).
+    pub fn max_abs_height_m(&self) -> f64 {
+        CATMULL_ROM_ABS_SUMS.0 * CATMULL_ROM_ABS_SUMS.0 * self.state.max_abs_height_m() as f64
+    }
+
+    /// Bounds over the whole plane: the largest |grad h| and the largest second directional
+    /// derivative along a unit horizontal direction, from the largest |node height| (the field is
+    /// a weighted sum of nodes, so each derivative is bounded by the sum of |weights| times it).
+    /// Conservative, which is what a root finder stepping along a ray needs.
+    pub fn slope_and_curvature_bounds(&self) -> (f64, f64) {
+        let s = &self.state.settings;
+        let u = self.state.max_abs_height_m() as f64;
+        let (w, dw, ddw) = CATMULL_ROM_ABS_SUMS;
+        // |d/dx| <= dw * w * u / spacing; |grad| <= sqrt(2) of that.
+        let slope = std::f64::consts::SQRT_2 * dw * w * u / s.spacing_m;
+        // |u^T H u| <= |h_xx| + 2 |h_xz| + |h_zz|.
+        let curvature = (2.0 * ddw * w + 2.0 * dw * dw) * u / (s.spacing_m * s.spacing_m);
+        (slope, curvature)
+    }
 }
 
 /// Two height fields added: the analytic waves plus the ripples.
@@ -369,6 +400,17 @@ impl HeightField for SumHeightField<'_> {
         let (rx, rz) = self.ripples.map_or((0.0, 0.0), |r| r.gradient(x, z));
         (bx + rx, bz + rz)
     }
+    fn height_and_gradient(&self, x: f64, z: f64) -> (f64, (f64, f64)) {
+        let (bh, (bx, bz)) = self.base.height_and_gradient(x, z);
+        match self.ripples {
+            None => (bh, (bx, bz)),
+            Some(r) => {
+                let (rh, (rx, rz)) = r.height_and_gradient(x, z);
+                (bh + rh, (bx + rx, bz + rz))
+            }
+        }
+    }
+
     fn hessian(&self, x: f64, z: f64) -> (f64, f64, f64) {
         // Both analytic: the waves' and the ripples' bicubic's (per cell).
         let (bxx, bxz, bzz) = self.base.hessian(x, z);
@@ -553,6 +595,60 @@ mod tests {
                 let (p, q) = (a.height_m[iz * nx + ix], a.height_m[iz * nx + nx - 1 - ix]);
                 assert!((p - q).abs() <= 1e-6 * a.max_abs_height_m());
             }
+        }
+    }
+
+    #[test]
+    fn catmull_rom_weight_sums_bound_every_fraction() {
+        let (w, dw, ddw) = CATMULL_ROM_ABS_SUMS;
+        let mut largest = (0.0f64, 0.0f64, 0.0f64);
+        for i in 0..=10_000 {
+            let t = i as f64 / 10_000.0;
+            let (weights, slopes) = catmull_rom(t);
+            let curvatures = [
+                0.5 * (-6.0 * t + 4.0),
+                0.5 * (18.0 * t - 10.0),
+                0.5 * (-18.0 * t + 8.0),
+                0.5 * (6.0 * t - 2.0),
+            ];
+            // The second-derivative weights are the derivative of the slope weights.
+            let e = 1e-6;
+            let (_, ahead) = catmull_rom(t + e);
+            for k in 0..4 {
+                assert!(((ahead[k] - slopes[k]) / e - curvatures[k]).abs() < 1e-4);
+            }
+            let sum = |v: [f64; 4]| v.iter().map(|x| x.abs()).sum::<f64>();
+            largest.0 = largest.0.max(sum(weights));
+            largest.1 = largest.1.max(sum(slopes));
+            largest.2 = largest.2.max(sum(curvatures));
+        }
+        assert!(
+            largest.0 <= w && largest.1 <= dw && largest.2 <= ddw,
+            "{largest:?}"
+        );
+        // Tight, so the root finder's steps are not needlessly short.
+        assert!(largest.0 > 0.99 * w && largest.1 > 0.99 * dw && largest.2 > 0.99 * ddw);
+    }
+
+    #[test]
+    fn ripple_bounds_hold_on_a_bumpy_field() {
+        let s = settings(41, Border::Reflect, 0.0);
+        let state = impulse(s, 0.1, -0.2, 0.12);
+        let field = state.field();
+        let (slope, curvature) = field.slope_and_curvature_bounds();
+        let e = 1e-5;
+        for i in 0..2_000 {
+            let x = -0.95 + 1.9 * ((i * 37 % 2000) as f64 / 2000.0);
+            let z = -0.95 + 1.9 * ((i * 91 % 2000) as f64 / 2000.0);
+            let (gx, gz) = field.gradient(x, z);
+            assert!(gx.hypot(gz) <= slope);
+            let u = glam::DVec2::new((i as f64).cos(), (i as f64).sin());
+            let along = |d: f64| field.height(x + d * u.x, z + d * u.y);
+            let second = (along(e) - 2.0 * along(0.0) + along(-e)) / (e * e);
+            assert!(
+                second.abs() <= curvature * 1.001 + 1e-3,
+                "{second} vs {curvature}"
+            );
         }
     }
 

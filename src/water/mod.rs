@@ -30,6 +30,11 @@ pub trait HeightField: Sync {
     fn height(&self, x: f64, z: f64) -> f64;
     /// (dh/dx, dh/dz) at (x, z).
     fn gradient(&self, x: f64, z: f64) -> (f64, f64);
+    /// Height and (dh/dx, dh/dz) together; fields that share work between the two (one `sin_cos`
+    /// per wave) override it. Root finders call this once per step.
+    fn height_and_gradient(&self, x: f64, z: f64) -> (f64, (f64, f64)) {
+        (self.height(x, z), self.gradient(x, z))
+    }
     /// Unit normal pointing up (to the air side): normalize(-dh/dx, 1, -dh/dz).
     fn normal(&self, x: f64, z: f64) -> DVec3 {
         let (gx, gz) = self.gradient(x, z);

@@ -182,6 +182,18 @@ impl HeightField for WaterSurface {
         })
     }
 
+    fn height_and_gradient(&self, x: f64, z: f64) -> (f64, (f64, f64)) {
+        let (mut h, mut gx, mut gz) = (self.level_m, 0.0, 0.0);
+        for term in &self.terms {
+            let (sin, cos) = (term.kx * x + term.kz * z + term.phase_now_rad).sin_cos();
+            h += term.amplitude_m * cos;
+            let slope = -term.amplitude_m * sin;
+            gx += slope * term.kx;
+            gz += slope * term.kz;
+        }
+        (h, (gx, gz))
+    }
+
     /// One `sin_cos` per wave for all three.
     fn height_derivatives(&self, x: f64, z: f64) -> (f64, (f64, f64), (f64, f64, f64)) {
         let (mut h, mut gx, mut gz) = (self.level_m, 0.0, 0.0);
@@ -212,6 +224,27 @@ impl HeightField for WaterSurface {
                     zz + curvature * term.kz * term.kz,
                 )
             })
+    }
+}
+
+impl WaterSurface {
+    /// Bounds over the whole plane: the largest |grad h| and the largest second directional
+    /// derivative `|u^T H u|` for unit horizontal `u` (sum of `a k` and of `a k^2` over the waves).
+    /// What a root finder needs to step along a ray without ever stepping over the surface.
+    pub fn slope_and_curvature_bounds(&self) -> (f64, f64) {
+        self.terms
+            .iter()
+            .fold((0.0, 0.0), |(slope, curvature), term| {
+                let k = term.kx.hypot(term.kz);
+                let a = term.amplitude_m.abs();
+                (slope + a * k, curvature + a * k * k)
+            })
+    }
+
+    /// Lowest and highest heights this surface can reach: level -/+ the sum of |amplitudes|.
+    pub fn height_bounds_m(&self) -> (f64, f64) {
+        let reach: f64 = self.terms.iter().map(|term| term.amplitude_m.abs()).sum();
+        (self.level_m - reach, self.level_m + reach)
     }
 }
 
