@@ -432,13 +432,7 @@ impl RenderJob {
             under_vertices: geometry.under_vertices,
             membrane_vertices: membrane_vertices(&membrane),
             membrane_indices: membrane.triangles.iter().flatten().copied().collect(),
-            materials: objects
-                .iter()
-                .map(|o| DrawMaterial {
-                    texture: o.material.texture,
-                    tint_linear: o.material.tint_linear,
-                })
-                .collect(),
+            materials: draw_materials(objects.iter()),
         };
         let view = FrameView {
             camera,
@@ -688,6 +682,16 @@ fn wave_from_spec(spec: &crate::scene::WaveSpec) -> Wave {
         phase_rad: spec.phase_rad,
         speed_m_per_s: spec.speed_m_per_s,
     }
+}
+
+/// The materials of `objects` as the GPU (and the tracer) index them: one per object, in order.
+pub(crate) fn draw_materials<'a>(objects: impl Iterator<Item = &'a Object>) -> Vec<DrawMaterial> {
+    objects
+        .map(|o| DrawMaterial {
+            texture: o.material.texture,
+            tint_linear: o.material.tint_linear,
+        })
+        .collect()
 }
 
 fn membrane_vertices(membrane: &Membrane) -> Vec<MembraneVertex> {

@@ -523,13 +523,7 @@ mod tests {
             };
             let membrane = build_membrane(&field, &grid(5.0, 40));
             Fixture {
-                materials: objects
-                    .iter()
-                    .map(|o| DrawMaterial {
-                        texture: o.material.texture,
-                        tint_linear: o.material.tint_linear,
-                    })
-                    .collect(),
+                materials: crate::frame::draw_materials(objects.iter()),
                 objects,
                 textures: TextureSet::new(&[white]).unwrap(),
                 field,
