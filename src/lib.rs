@@ -12,12 +12,19 @@
 //!    [`reference`]  — the ray-traced reference over the same stage-2 output (CPU, rayon): `--method raytrace`.
 //! 5. [`output`]     — multi-layer OpenEXR frames, per-frame report, tone-mapped previews, image comparison.
 //!
+//! [`accuracy`] reproduces the thesis's accuracy study (error volumes of its Tables 4.1, 4.2, 4.5)
+//! for the linear and the exact method.
+//!
 //! [`check`] compares frames (EXR files, or a scene's renders against goldens) for CI: FLIP,
 //! Z/P tolerances, exact flag counts, JUnit.
+//!
+//! [`tools`] checks snell from outside: every image of given points (`snell locate`), position
+//! error between frames (`snell compare`), a frame's geometry and camera for other tools (`snell export`).
 //!
 //! [`frame`] ties the stages together: one `render_frame` entry point used identically by the CLI
 //! and by the tests. [`interrupt`] turns Ctrl-C into a stop after the frame in flight.
 
+pub mod accuracy;
 pub mod camera;
 pub mod character;
 pub mod check;
@@ -34,6 +41,7 @@ pub mod refraction;
 pub mod scene;
 pub mod sim;
 pub mod timeline;
+pub mod tools;
 pub mod water;
 
 /// The version written into every EXR header and report.

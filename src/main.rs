@@ -132,6 +132,54 @@ enum Command {
     /// commit the goldens, then run the same line without --bless in CI (no GPU needed: Mesa's
     /// lavapipe or llvmpipe render on the CPU). Exit codes as for `snell diff`.
     Check(snell::check::cli::CheckArgs),
+    /// Reproduce the thesis's accuracy study: error volumes of every row of its Tables 4.1, 4.2
+    /// and 4.5, for the linear method (the thesis's cells) and the exact one (Newton on Fermat's
+    /// principle), beside the published means, as a Markdown table.
+    ///
+    /// Each row is a refractor (flat disk of planar radius 142, membranes conforming to spheres as
+    /// bowls and as caps, square grids 284 a side) with the eye above it, n1 = 1.0, n2 = 1.51, and
+    /// a 400-unit cube of samples under it. For each sample V the method gives a virtual vertex V';
+    /// the computed vertex C is where V must be for the eye to see it at V' (exact intersection of
+    /// the ray E -> V' with the exact surface, exact refraction, foreshortening undone); the error
+    /// is |C - V|. Samples with no image, an extrapolated cell or several images are excluded and
+    /// counted. The output states every setup choice. Exit codes: 0 done, 2 bad option or CSV
+    /// path, 1 a write that failed.
+    Accuracy(snell::accuracy::cli::AccuracyArgs),
+    /// Print every image of given world points through a frame's water: where each appears
+    /// (virtual vertex), where its sight ray crosses the water (sight point), through which
+    /// membrane facet, and whether an extrapolated ray made it.
+    ///
+    /// Prints CSV on stdout with the columns point,image,vx,vy,vz,sx,sy,sz,facet,extrapolated
+    /// (point = 0-based row of the points file, image = 0-based, ordered by facet). The images are
+    /// the ones a render of that frame computes (same water, cells and search). A point with no
+    /// image has no row: a note on stderr says why (above the water, outside its extent, or
+    /// under it but outside the visible volume). Several rows for one point = a zone of
+    /// convergence. Example: printf 'x,y,z\n0.2,-0.6,0.1\n' > p.csv;
+    /// snell locate scenes/tiny.toml --frame 1 --points p.csv
+    Locate(snell::tools::cli::LocateArgs),
+    /// Measure how far apart two EXR frames of the same shot are: screen-space position error,
+    /// beauty FLIP and object mismatch.
+    ///
+    /// Position error: for each pixel of A that sees an object, the distance in pixels (sub-pixel)
+    /// to the place in B that sees the same world point — B's pixel with the nearest true position
+    /// P on the same object within --window, refined between pixels — as mean, 99th percentile
+    /// and max over the pixels where both see the same object, and again outside A's flagged
+    /// pixels. Then the mean FLIP of the tone-mapped beauty and the fraction of pixels whose
+    /// seen object differs. Typical use: A = a --method raytrace render, B = the same frame by a
+    /// faster method. Needs frames with the object layer. Exit 2 for a missing or unreadable file
+    /// or frames of different sizes.
+    Compare(snell::tools::cli::CompareArgs),
+    /// Write a frame's world-space geometry (water membrane, every object, posed characters) as
+    /// OBJ (+ MTL + PNG textures) or PLY, and its camera as camera.json.
+    ///
+    /// OBJ: DIR/<scene>.<frame>.obj with one object per scene object (the membrane is `water`),
+    /// texture coordinates (OBJ convention, bottom-left origin) and normals. camera.json: eye,
+    /// target, up, vertical field of view in degrees, image size, near/far and the view and clip
+    /// matrices. PLY (--format ply): DIR/<scene>.<frame>.<k>_<object>.ply, one ASCII file per
+    /// object, in the same order. Every file is written atomically. Load the OBJ in Blender or any
+    /// DCC tool, or render it elsewhere with the camera, to check snell's frames. Example:
+    /// snell export scenes/pool.toml --frame 24 --out output/pool/export
+    Export(snell::tools::cli::ExportArgs),
 }
 
 fn main() -> ExitCode {
@@ -146,6 +194,10 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Diff(args) => return ExitCode::from(snell::check::cli::run_diff(&args)),
         Command::Check(args) => return ExitCode::from(snell::check::cli::run_check(&args)),
+        Command::Accuracy(args) => return ExitCode::from(snell::accuracy::cli::run(&args)),
+        Command::Locate(args) => return ExitCode::from(snell::tools::cli::run_locate(&args)),
+        Command::Compare(args) => return ExitCode::from(snell::tools::cli::run_compare(&args)),
+        Command::Export(args) => return ExitCode::from(snell::tools::cli::run_export(&args)),
         Command::Render {
             scene,
             frames,

@@ -139,6 +139,34 @@ pub struct RefractedFrame {
     pub trace: Option<traced::TraceInputs>,
 }
 
+/// One frame's water and world, before refraction: what [`RenderJob::frame_water`] returns.
+pub struct FrameWater<'a> {
+    pub frame: u32,
+    pub time_secs: f64,
+    pub camera: Camera,
+    /// World space: the static objects, then the posed characters; an object's index here is its
+    /// material index in the frame (and its object id minus one).
+    pub objects: std::borrow::Cow<'a, [Object]>,
+    /// The waves at this instant (exact).
+    pub waves_now: crate::water::WaterSurface,
+    /// The characters' ripples at this frame, if the scene has any.
+    pub ripples: Option<std::sync::Arc<crate::sim::RippleState>>,
+    /// The faceted membrane sampled from [`FrameWater::surface`].
+    pub membrane: Membrane,
+    /// Heights the refraction search must answer for (lowest object vertex to highest water).
+    pub query_y_range: (f32, f32),
+}
+
+impl FrameWater<'_> {
+    /// The exact water surface: waves plus ripples.
+    pub fn surface(&self) -> SumHeightField<'_> {
+        SumHeightField {
+            base: &self.waves_now,
+            ripples: self.ripples.as_ref().map(|state| state.field()),
+        }
+    }
+}
+
 /// How under-water geometry is placed: which refraction cells the virtual vertices come from.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum Method {
@@ -335,16 +363,25 @@ impl RenderJob {
             .sample(self.scene.timeline.time_secs(frame))
     }
 
-    /// CPU stages of a frame: water, membrane, refraction, virtual geometry, flags. `previous` is the
-    /// tracking of frame - 1 (for popping); pass `None` only for the timeline's first frame.
-    pub fn refract(
+    /// The optics of every frame of this job seen from `eye` ([`Self::method`]'s cells).
+    pub fn refraction_setup(&self, eye: glam::Vec3) -> RefractionSetup {
+        RefractionSetup {
+            eye,
+            n_above: self.scene.water.n_above as f32,
+            n_below: self.scene.water.n_below as f32,
+            cell_mode: self.method.cell_mode(),
+        }
+    }
+
+    /// The first CPU stages of a frame, shared by [`Self::refract`], `snell locate` and
+    /// `snell export`: camera, posed characters, ripples, the exact surface and its membrane.
+    /// Records the `skinning`, `ripples` and `water` stage times in `stage_secs`. An eye at or
+    /// under the water is an error (snell renders from above).
+    pub fn frame_water(
         &self,
         frame: u32,
-        width: u32,
-        height: u32,
-        previous: Option<&VertexTracking>,
-    ) -> Result<RefractedFrame, SnellError> {
-        let mut stage_secs = BTreeMap::new();
+        stage_secs: &mut BTreeMap<String, f64>,
+    ) -> Result<FrameWater<'_>, SnellError> {
         let time_secs = self.scene.timeline.time_secs(frame);
         let camera = self.camera_track.sample(time_secs);
         let clock = Instant::now();
@@ -356,10 +393,6 @@ impl RenderJob {
             .ripples_at(&self.scene, &self.waves, frame, &posed)?;
         stage_secs.insert("ripples".to_string(), clock.elapsed().as_secs_f64());
         let waves_now = self.waves.at(time_secs);
-        let surface = SumHeightField {
-            base: &waves_now,
-            ripples: ripples.as_ref().map(|state| state.field()),
-        };
         // Characters widen the heights the search covers; the static objects' range is known.
         let query_y_range = (
             posed
@@ -368,6 +401,15 @@ impl RenderJob {
                 .fold(self.query_y_range.0, f32::min),
             self.query_y_range.1 + ripples.as_ref().map_or(0.0, |r| r.max_abs_height_m()),
         );
+        let objects: std::borrow::Cow<'_, [Object]> = if posed.is_empty() {
+            std::borrow::Cow::Borrowed(&self.objects)
+        } else {
+            std::borrow::Cow::Owned(self.objects.iter().cloned().chain(posed).collect())
+        };
+        let surface = SumHeightField {
+            base: &waves_now,
+            ripples: ripples.as_ref().map(|state| state.field()),
+        };
         let water_at_eye = surface.height(camera.eye.x as f64, camera.eye.z as f64);
         if (camera.eye.y as f64) <= water_at_eye + 0.01 {
             return Err(SnellError::Frame {
@@ -380,41 +422,63 @@ impl RenderJob {
                 ),
             });
         }
-
         let clock = Instant::now();
         let membrane = build_membrane(&surface, &self.scene.water.grid());
         stage_secs.insert("water".to_string(), clock.elapsed().as_secs_f64());
+        Ok(FrameWater {
+            frame,
+            time_secs,
+            camera,
+            objects,
+            waves_now,
+            ripples,
+            membrane,
+            query_y_range,
+        })
+    }
+
+    /// CPU stages of a frame: water, membrane, refraction, virtual geometry, flags. `previous` is the
+    /// tracking of frame - 1 (for popping); pass `None` only for the timeline's first frame.
+    pub fn refract(
+        &self,
+        frame: u32,
+        width: u32,
+        height: u32,
+        previous: Option<&VertexTracking>,
+    ) -> Result<RefractedFrame, SnellError> {
+        let mut stage_secs = BTreeMap::new();
+        let water = self.frame_water(frame, &mut stage_secs)?;
         if self.method.traced_water().is_some() {
             // The tracer needs no refraction field or virtual geometry: it traces the frame.
             let inputs = traced::TraceInputs {
-                posed,
-                waves: waves_now,
-                ripples,
-                membrane,
+                posed: water.objects[self.objects.len()..].to_vec(),
+                waves: water.waves_now,
+                ripples: water.ripples,
+                membrane: water.membrane,
             };
             return Ok(self.traced_frame(
                 frame,
-                time_secs,
-                camera,
+                water.time_secs,
+                water.camera,
                 (width, height),
                 inputs,
                 stage_secs,
             ));
         }
-        let objects: std::borrow::Cow<'_, [Object]> = if posed.is_empty() {
-            std::borrow::Cow::Borrowed(&self.objects)
-        } else {
-            std::borrow::Cow::Owned(self.objects.iter().cloned().chain(posed).collect())
-        };
-
+        let (time_secs, camera, objects, membrane) = (
+            water.time_secs,
+            water.camera,
+            &water.objects,
+            &water.membrane,
+        );
+        let surface = water.surface();
         let clock = Instant::now();
-        let setup = RefractionSetup {
-            eye: camera.eye,
-            n_above: self.scene.water.n_above as f32,
-            n_below: self.scene.water.n_below as f32,
-            cell_mode: self.method.cell_mode(),
-        };
-        let field = RefractionField::build(&membrane, &surface, setup, query_y_range);
+        let field = RefractionField::build(
+            membrane,
+            &surface,
+            self.refraction_setup(camera.eye),
+            water.query_y_range,
+        );
         let request = VirtualGeometryRequest {
             field: &field,
             camera,

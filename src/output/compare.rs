@@ -25,7 +25,7 @@ impl FlipResult {
     }
 }
 
-fn percentile_of_sorted(sorted: &[f32], p: f32) -> f32 {
+pub(crate) fn percentile_of_sorted(sorted: &[f32], p: f32) -> f32 {
     if sorted.is_empty() {
         return 0.0;
     }

@@ -5,6 +5,7 @@
 
 pub mod bench;
 pub mod cells;
+pub mod exact;
 pub mod flags;
 pub mod flat;
 pub mod rays;

@@ -652,6 +652,12 @@ impl<'a> RefractionField<'a> {
         self.merge_and_check_crests(point64, out);
     }
 
+    /// The membrane's grid spacing (the smaller of the two directions), metres: the finest
+    /// feature the membrane resolves.
+    pub fn spacing_m(&self) -> f64 {
+        self.spacing_m
+    }
+
     /// The cell of one facet.
     #[inline]
     pub fn cell(&self, facet: u32) -> Cell {

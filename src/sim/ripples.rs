@@ -349,6 +349,13 @@ impl HeightField for SumHeightField<'_> {
         let (rx, rz) = self.ripples.map_or((0.0, 0.0), |r| r.gradient(x, z));
         (bx + rx, bz + rz)
     }
+    fn hessian(&self, x: f64, z: f64) -> (f64, f64, f64) {
+        // The waves' own (analytic) second derivatives plus the ripples' (differences of their
+        // C1 bicubic's gradient: the trait's default).
+        let (bxx, bxz, bzz) = self.base.hessian(x, z);
+        let (rxx, rxz, rzz) = self.ripples.map_or((0.0, 0.0, 0.0), |r| r.hessian(x, z));
+        (bxx + rxx, bxz + rxz, bzz + rzz)
+    }
     fn height_and_gradient(&self, x: f64, z: f64) -> (f64, (f64, f64)) {
         let (bh, (bx, bz)) = self.base.height_and_gradient(x, z);
         match self.ripples {

@@ -17,6 +17,10 @@ impl HeightField for FlatHeightField {
     fn gradient(&self, _x: f64, _z: f64) -> (f64, f64) {
         (0.0, 0.0)
     }
+
+    fn hessian(&self, _x: f64, _z: f64) -> (f64, f64, f64) {
+        (0.0, 0.0, 0.0)
+    }
 }
 
 type HeightFn = dyn Fn(f64, f64) -> f64 + Send + Sync;

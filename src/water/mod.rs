@@ -40,6 +40,23 @@ pub trait HeightField: Sync {
         let (gx, gz) = self.gradient(x, z);
         DVec3::new(-gx, 1.0, -gz).normalize()
     }
+    /// Second derivatives (h_xx, h_xz, h_zz) at (x, z), for Newton's method on Fermat's principle
+    /// (`refraction::exact`). The default takes central differences of [`Self::gradient`] with a
+    /// step of 1e-5 of the coordinate's magnitude (at least 1e-5): about 1e-9 relative on smooth
+    /// surfaces of metre scale. Fields with cheap analytic second derivatives override it.
+    fn hessian(&self, x: f64, z: f64) -> (f64, f64, f64) {
+        let step_x = 1e-5 * x.abs().max(1.0);
+        let step_z = 1e-5 * z.abs().max(1.0);
+        let (xp_x, xp_z) = self.gradient(x + step_x, z);
+        let (xm_x, xm_z) = self.gradient(x - step_x, z);
+        let (zp_x, zp_z) = self.gradient(x, z + step_z);
+        let (zm_x, zm_z) = self.gradient(x, z - step_z);
+        let h_xx = (xp_x - xm_x) / (2.0 * step_x);
+        let h_zz = (zp_z - zm_z) / (2.0 * step_z);
+        // Both mixed differences estimate the same h_xz; their mean cancels part of the error.
+        let h_xz = 0.5 * ((xp_z - xm_z) / (2.0 * step_x) + (zp_x - zm_x) / (2.0 * step_z));
+        (h_xx, h_xz, h_zz)
+    }
 }
 
 /// The rectangle of the horizontal plane the membrane covers and its grid resolution (cells).

@@ -182,6 +182,21 @@ impl HeightField for WaterSurface {
         })
     }
 
+    /// Analytic: each term `a cos(phi)` contributes `-a cos(phi) (kx^2, kx kz, kz^2)`.
+    fn hessian(&self, x: f64, z: f64) -> (f64, f64, f64) {
+        self.terms
+            .iter()
+            .fold((0.0, 0.0, 0.0), |(xx, xz, zz), term| {
+                let curvature =
+                    -term.amplitude_m * (term.kx * x + term.kz * z + term.phase_now_rad).cos();
+                (
+                    xx + curvature * term.kx * term.kx,
+                    xz + curvature * term.kx * term.kz,
+                    zz + curvature * term.kz * term.kz,
+                )
+            })
+    }
+
     fn height_and_gradient(&self, x: f64, z: f64) -> (f64, (f64, f64)) {
         let (mut h, mut gx, mut gz) = (self.level_m, 0.0, 0.0);
         for term in &self.terms {
@@ -279,6 +294,62 @@ mod tests {
                 (gz - fd_z).abs() < 1e-8,
                 "dh/dz at ({x}, {z}): {gz} vs {fd_z}"
             );
+        }
+    }
+
+    #[test]
+    fn hessian_matches_differences_of_the_gradient() {
+        let surface = choppy_field().at(2.1);
+        let step_m = 1e-5;
+        for (x, z) in seeded_points(200, 8.0) {
+            let (xx, xz, zz) = surface.hessian(x, z);
+            let (gx_p, gz_p) = surface.gradient(x + step_m, z);
+            let (gx_m, gz_m) = surface.gradient(x - step_m, z);
+            let (zx_p, zz_p) = surface.gradient(x, z + step_m);
+            let (zx_m, zz_m) = surface.gradient(x, z - step_m);
+            // Same error budget as the gradient test, one derivative higher (a k^4 ~ 1e2 times
+            // h^2 / 6 ~ 2e-9); curvatures themselves are ~1.
+            let fd = [
+                (gx_p - gx_m) / (2.0 * step_m),
+                (gz_p - gz_m) / (2.0 * step_m),
+                (zx_p - zx_m) / (2.0 * step_m),
+                (zz_p - zz_m) / (2.0 * step_m),
+            ];
+            assert!(
+                (xx - fd[0]).abs() < 1e-7,
+                "h_xx at ({x}, {z}): {xx} vs {}",
+                fd[0]
+            );
+            assert!(
+                (xz - fd[1]).abs() < 1e-7,
+                "h_xz at ({x}, {z}): {xz} vs {}",
+                fd[1]
+            );
+            assert!(
+                (xz - fd[2]).abs() < 1e-7,
+                "h_zx at ({x}, {z}): {xz} vs {}",
+                fd[2]
+            );
+            assert!(
+                (zz - fd[3]).abs() < 1e-7,
+                "h_zz at ({x}, {z}): {zz} vs {}",
+                fd[3]
+            );
+            // The trait's default (differences of the gradient) agrees with the analytic form.
+            let default = DefaultHessian(&surface).hessian(x, z);
+            assert!((default.0 - xx).abs() < 1e-6 && (default.1 - xz).abs() < 1e-6);
+            assert!((default.2 - zz).abs() < 1e-6, "{default:?} vs {zz}");
+        }
+    }
+
+    /// The surface with the trait's default `hessian`.
+    struct DefaultHessian<'a>(&'a WaterSurface);
+    impl HeightField for DefaultHessian<'_> {
+        fn height(&self, x: f64, z: f64) -> f64 {
+            self.0.height(x, z)
+        }
+        fn gradient(&self, x: f64, z: f64) -> (f64, f64) {
+            self.0.gradient(x, z)
         }
     }
 
