@@ -23,8 +23,9 @@
 //! metres) x (texels per metre of the triangle) / |cos| of the angle between the ray and the
 //! surface (the footprint's long axis, which is what the GPU's max-of-derivatives measures). For
 //! refracted pixels the footprint is taken at the apparent distance `|S - E| + eta |V - S|`
-//! (ALGORITHM §4) and the obliquity along the refracted ray: an estimate, within a fraction of a
-//! level of the rasteriser's on pool floors, not the exact derivative of the virtual triangle.
+//! (ALGORITHM §4) and the obliquity along the refracted ray: an estimate, not the exact
+//! derivative of the virtual triangle (on `pool.toml` the whole beauty agrees with the
+//! rasteriser's to 0.5 % L1 in linear light, see `tests/reference.rs`).
 
 pub mod bvh;
 pub mod surface;
