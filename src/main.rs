@@ -109,8 +109,9 @@ enum Command {
         /// The scene file (TOML).
         scene: PathBuf,
     },
-    /// Measure speed: refraction search throughput and speed-up over brute force, and per-stage
-    /// frame times of a scene (default scenes/pool.toml) at 1280x720.
+    /// Measure speed: refraction search throughput and speed-up over brute force, per-stage
+    /// frame times of a scene (default scenes/pool.toml) at 1280x720, and the ray-traced
+    /// reference's refracted rays per second and seconds per frame on the same scene and size.
     Bench {
         /// Print the figures as one JSON object.
         #[arg(long)]

@@ -495,26 +495,16 @@ impl RenderJob {
         let water = self.frame_water(frame, &mut stage_secs)?;
         if self.method.traced_water().is_some() {
             // The tracer needs no refraction field or virtual geometry: it traces the frame.
-            let FrameWater {
-                time_secs,
-                camera,
-                objects,
-                waves_now,
-                ripples,
-                membrane,
-                ..
-            } = water;
             let inputs = traced::TraceInputs {
-                // The frame's objects are the static ones, then the posed characters.
-                posed: objects[self.objects.len()..].to_vec(),
-                waves: waves_now,
-                ripples,
-                membrane,
+                posed: water.objects[self.objects.len()..].to_vec(),
+                waves: water.waves_now,
+                ripples: water.ripples,
+                membrane: water.membrane,
             };
             return Ok(self.traced_frame(
                 frame,
-                time_secs,
-                camera,
+                water.time_secs,
+                water.camera,
                 (width, height),
                 inputs,
                 stage_secs,
@@ -552,13 +542,7 @@ impl RenderJob {
             under_vertices: geometry.under_vertices,
             membrane_vertices: membrane_vertices(&membrane),
             membrane_indices: membrane.triangles.iter().flatten().copied().collect(),
-            materials: objects
-                .iter()
-                .map(|o| DrawMaterial {
-                    texture: o.material.texture,
-                    tint_linear: o.material.tint_linear,
-                })
-                .collect(),
+            materials: draw_materials(objects.iter()),
         };
         let view = FrameView {
             camera,
@@ -817,6 +801,16 @@ fn wave_from_spec(spec: &crate::scene::WaveSpec) -> Wave {
         phase_rad: spec.phase_rad,
         speed_m_per_s: spec.speed_m_per_s,
     }
+}
+
+/// The materials of `objects` as the GPU (and the tracer) index them: one per object, in order.
+pub(crate) fn draw_materials<'a>(objects: impl Iterator<Item = &'a Object>) -> Vec<DrawMaterial> {
+    objects
+        .map(|o| DrawMaterial {
+            texture: o.material.texture,
+            tint_linear: o.material.tint_linear,
+        })
+        .collect()
 }
 
 fn membrane_vertices(membrane: &Membrane) -> Vec<MembraneVertex> {

@@ -9,7 +9,7 @@ use std::time::Instant;
 
 use super::{RefractedFrame, RenderJob, SnellError};
 use crate::camera::Camera;
-use crate::draw::{DrawMaterial, FrameDraw, FrameView};
+use crate::draw::{FrameDraw, FrameView};
 use crate::mesh::Object;
 use crate::reference::{self, texture::TextureSet, TraceScene, TracedFrame};
 use crate::refraction::flags::{FlagCounts, TrackingState};
@@ -50,15 +50,7 @@ impl RenderJob {
                 .flatten()
                 .copied()
                 .collect(),
-            materials: self
-                .objects
-                .iter()
-                .chain(&inputs.posed)
-                .map(|o| DrawMaterial {
-                    texture: o.material.texture,
-                    tint_linear: o.material.tint_linear,
-                })
-                .collect(),
+            materials: super::draw_materials(self.objects.iter().chain(&inputs.posed)),
             ..FrameDraw::default()
         };
         RefractedFrame {

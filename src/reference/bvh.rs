@@ -182,9 +182,7 @@ impl Bvh {
         let mut stack: [(u32, f32); 64] = [(0, 0.0); 64];
         let mut depth = 0usize;
         let mut current = 0u32;
-        if box_entry(&self.nodes[0], ray, t_min, t_far).is_none() {
-            return None;
-        }
+        box_entry(&self.nodes[0], ray, t_min, t_far)?;
         let negative = [
             ray.direction.x < 0.0,
             ray.direction.y < 0.0,
