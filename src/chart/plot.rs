@@ -1,6 +1,6 @@
 //! The speed-vs-accuracy chart: receives labelled points (seconds per frame, mean position error)
 //! and the reference's time, returns the chart as SVG text or as an RGBA image. Log axes both ways;
-//! text is laid out with the DejaVu Sans shipped in `assets/fonts` (plotters' `ab_glyph` backend),
+//! text is laid out with the DejaVu Sans shipped in `src/chart/font` (plotters' `ab_glyph` backend),
 //! so the chart draws the same on every machine, system fonts or not.
 
 use std::sync::Once;
@@ -9,8 +9,8 @@ use image::RgbaImage;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-/// DejaVu Sans (Bitstream Vera licence; see assets/fonts/CREDITS.md).
-static FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
+/// DejaVu Sans (Bitstream Vera licence; see src/chart/font/CREDITS.md).
+static FONT: &[u8] = include_bytes!("font/DejaVuSans.ttf");
 const FONT_FAMILY: &str = "sans-serif";
 
 /// One configuration on the chart.
