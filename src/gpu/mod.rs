@@ -8,8 +8,9 @@
 //! position in xyz and of the eye distance in w, on every backend), flags (R32Uint: the flag bits,
 //! and above them the object seen) and
 //! depth-stencil — and run as eight draws:
-//! 1. sky (full-screen, far plane), 2. above-water geometry (true positions, depth test),
-//! 3. membrane marks stencil = 1 where visible (no colour), 4. inside the stencil a full-screen
+//! 1. above-water geometry (true positions, depth test), 2. membrane marks stencil = 1 where
+//! visible (no colour), 3. sky (full-screen at the far plane, only where depth is still far and the
+//! stencil unmarked, so covered pixels never shade it), 4. inside the stencil a full-screen
 //!    triangle pushes depth to far and writes the deep-water colour, 5. under-water geometry at
 //!    virtual positions with true attributes, 6. inside the stencil depth is pushed to far again and
 //!    7. the membrane is redrawn depth-only, so that 8. the Fresnel blend (depth Equal) touches only
@@ -459,7 +460,7 @@ fn create_pipelines(
     context: &GpuContext,
     bind_group_layout: &wgpu::BindGroupLayout,
 ) -> Result<Pipelines, GpuError> {
-    use wgpu::CompareFunction::{Always, Equal, Less};
+    use wgpu::CompareFunction::{Always, Equal, Less, LessEqual, NotEqual};
     use wgpu::StencilOperation::{Keep, Replace};
     let device = &context.device;
     let factory = PipelineFactory {
@@ -515,10 +516,13 @@ fn create_pipelines(
             "fs_sky",
             &[],
             ALL_WRITES,
+            // Drawn after the above-water geometry and the membrane's stencil: only pixels that
+            // nothing has covered (depth still at the far plane, no visible membrane) shade the
+            // sky, instead of every pixel of the frame shading it to be overwritten.
             DepthStencil {
                 depth_write: false,
-                depth_compare: Always,
-                stencil_compare: Always,
+                depth_compare: LessEqual,
+                stencil_compare: NotEqual,
                 stencil_pass: Keep,
             },
         ),
@@ -1019,9 +1023,7 @@ impl Renderer {
             growing.buffer.as_ref().map(|buffer| buffer.slice(..))
         }
 
-        // a. sky, then the geometry on the eye's side.
-        pass.set_pipeline(&pipelines.sky);
-        pass.draw(0..3, 0..1);
+        // a. the geometry on the eye's side.
         if let (Some(vertices), Some(indices)) = (
             buffer_of(&self.above_vertices),
             buffer_of(&self.above_indices),
@@ -1043,6 +1045,8 @@ impl Renderer {
             _ => None,
         };
         let Some((membrane_vertices, membrane_indices)) = membrane else {
+            pass.set_pipeline(&pipelines.sky);
+            pass.draw(0..3, 0..1);
             return;
         };
         let membrane_index_count = draw.membrane_indices.len() as u32;
@@ -1052,8 +1056,10 @@ impl Renderer {
             pass.set_index_buffer(membrane_indices, wgpu::IndexFormat::Uint32);
             pass.draw_indexed(0..membrane_index_count, 0, 0..1);
         };
-        // b. stencil where the membrane is visible.
+        // b. stencil where the membrane is visible, then the sky where nothing is.
         draw_membrane(&mut pass, &pipelines.membrane_mark);
+        pass.set_pipeline(&pipelines.sky);
+        pass.draw(0..3, 0..1);
         // c. inside the stencil: depth to far + deep-water colour, then the virtual geometry.
         pass.set_pipeline(&pipelines.deep_water);
         pass.draw(0..3, 0..1);
