@@ -318,10 +318,11 @@ fn parse_junit(path: &Path) -> (usize, usize, String) {
     let file = std::fs::File::open(path).unwrap();
     let (mut testcases, mut failures, mut tests_attribute) = (0, 0, String::new());
     for event in EventReader::new(std::io::BufReader::new(file)) {
-        match event.expect("the JUnit report is well-formed XML") {
-            XmlEvent::StartElement {
-                name, attributes, ..
-            } => match name.local_name.as_str() {
+        if let XmlEvent::StartElement {
+            name, attributes, ..
+        } = event.expect("the JUnit report is well-formed XML")
+        {
+            match name.local_name.as_str() {
                 "testcase" => testcases += 1,
                 "failure" => failures += 1,
                 "testsuite" => {
@@ -332,8 +333,7 @@ fn parse_junit(path: &Path) -> (usize, usize, String) {
                         .unwrap_or_default()
                 }
                 _ => {}
-            },
-            _ => {}
+            }
         }
     }
     (testcases, failures, tests_attribute)

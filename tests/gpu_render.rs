@@ -137,6 +137,8 @@ impl Rect {
     }
 
     /// Ray parameter of the hit, if the ray meets the rectangle.
+    // `!(t > 0.0)` also misses on a NaN `t` (ray parallel to the plane); `t <= 0.0` would not.
+    #[allow(clippy::neg_cmp_op_on_partial_ord)]
     fn hit(&self, origin: Vec3, direction: Vec3) -> Option<f32> {
         let t = (self.level - origin[self.axis]) / direction[self.axis];
         if !(t > 0.0) {
@@ -265,17 +267,16 @@ fn srgb_textures_decode_to_linear() {
                 continue;
             };
             let at = (y * WIDTH + x) as usize;
-            for c in 0..3 {
+            for (c, &code) in texel.iter().enumerate() {
                 let ratio = coloured.beauty_rgba[at][c] / white.beauty_rgba[at][c];
-                let expected = srgb_to_linear(texel[c]);
+                let expected = srgb_to_linear(code);
                 // Drivers decode sRGB approximately (llvmpipe/lavapipe by a polynomial, measured
                 // ~0.1 % off here), and a half-float target adds 2^-11 per value: allow a quarter
                 // of the 8-bit step at this code, far below what a missing or doubled decode gives.
-                let step = srgb_to_linear(texel[c] + 1) - expected;
+                let step = srgb_to_linear(code + 1) - expected;
                 assert!(
                     (ratio - expected).abs() <= 0.25 * step + 2e-3 * expected,
-                    "pixel ({x},{y}) channel {c}: ratio {ratio}, sRGB {} decodes to {expected}",
-                    texel[c]
+                    "pixel ({x},{y}) channel {c}: ratio {ratio}, sRGB {code} decodes to {expected}"
                 );
             }
             checked += 1;

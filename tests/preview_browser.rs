@@ -266,8 +266,11 @@ async fn preview_page_in_headless_chromium() {
         (20..=40).contains(&frame),
         "the drag should land near 60 % of the timeline, got frame {frame}"
     );
+    // The page reports the frame as a string; comparing the JSON value with the bare number would
+    // never match, so compare against the text.
+    let frame_text = frame.to_string();
     let shown = wait_for(&client, "the dragged-to frame", SHOWN_FRAME, |v| {
-        v["frame"] == frame.to_string()
+        v["frame"] == frame_text
     })
     .await;
     let label = client
@@ -319,7 +322,7 @@ async fn preview_page_in_headless_chromium() {
     .await;
     let previous_generation = shown["generation"].as_str().unwrap().to_string();
     let recovered = wait_for(&client, "the frame after the fix", SHOWN_FRAME, |v| {
-        v["frame"] == frame.to_string()
+        v["frame"] == frame_text
             && v["generation"]
                 .as_str()
                 .is_some_and(|g| g != previous_generation)

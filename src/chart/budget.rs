@@ -146,7 +146,7 @@ fn choice_key(job: &RenderJob, width: u32, height: u32) -> String {
 fn read_cached(path: &Path, key: &str) -> Option<QualityChoice> {
     let text = std::fs::read_to_string(path).ok()?;
     let cached: CachedChoice = serde_json::from_str(&text).ok()?;
-    (cached.key == key).then(|| QualityChoice {
+    (cached.key == key).then_some(QualityChoice {
         from_cache: true,
         ..cached.choice
     })

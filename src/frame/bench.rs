@@ -119,7 +119,9 @@ fn exact_times(scene_path: &Path, frames: u32) -> Result<ExactFigures, SnellErro
     let frames = frames
         .max(1)
         .min(timeline.last_frame - timeline.first_frame + 1);
-    let measure = |job: &RenderJob| -> Result<(Vec<f64>, Vec<f64>, Vec<f64>), SnellError> {
+    // Per measured frame: refraction ms, subdivided triangles, fallbacks.
+    type Samples = (Vec<f64>, Vec<f64>, Vec<f64>);
+    let measure = |job: &RenderJob| -> Result<Samples, SnellError> {
         let (mut ms, mut subdivided, mut fallbacks) = (Vec::new(), Vec::new(), Vec::new());
         let mut previous = None;
         for (i, frame) in (timeline.first_frame..timeline.first_frame + frames + 1).enumerate() {

@@ -528,7 +528,7 @@ impl RenderJob {
             field: &field,
             camera,
             image_size: (width, height),
-            objects: &objects,
+            objects,
             mean_level_m: self.waves.level_m as f32,
             search: ImageSearch::Accelerated,
         };
@@ -540,7 +540,7 @@ impl RenderJob {
             above_vertices: geometry.above_vertices,
             above_indices: geometry.above_indices,
             under_vertices: geometry.under_vertices,
-            membrane_vertices: membrane_vertices(&membrane),
+            membrane_vertices: membrane_vertices(membrane),
             membrane_indices: membrane.triangles.iter().flatten().copied().collect(),
             materials: draw_materials(objects.iter()),
         };

@@ -107,7 +107,7 @@ mod tests {
     /// A seeded pattern: smooth gradients plus a checker, like tiles seen through water.
     fn pattern(width: u32, height: u32, seed: u32) -> RgbaImage {
         RgbaImage::from_fn(width, height, |x, y| {
-            let checker: u32 = if ((x / 8) + (y / 8) + seed) % 2 == 0 {
+            let checker: u32 = if ((x / 8) + (y / 8) + seed).is_multiple_of(2) {
                 40
             } else {
                 0

@@ -347,6 +347,8 @@ fn length<const N: usize>(v: &[f64; N]) -> f64 {
 }
 
 /// The inverse of a 2x2 matrix, or `None` when it is (nearly) singular relative to its size.
+// `!(det.abs() > ..)` also returns `None` for a NaN determinant; `<=` would invert it.
+#[allow(clippy::neg_cmp_op_on_partial_ord)]
 fn inverse_2x2(m: [[f64; 2]; 2]) -> Option<[[f64; 2]; 2]> {
     let det = m[0][0] * m[1][1] - m[0][1] * m[1][0];
     let scale = m[0][0].abs().max(m[1][1].abs()).max(m[0][1].abs());

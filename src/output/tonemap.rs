@@ -42,7 +42,7 @@ fn multiply(matrix: &[[f32; 3]; 3], v: [f32; 3]) -> [f32; 3] {
 /// Rational fit of the ACES reference rendering transform followed by the output transform.
 fn rrt_and_odt_fit(v: f32) -> f32 {
     let a = v * (v + 0.0245786) - 0.000090537;
-    let b = v * (0.983729 * v + 0.4329510) + 0.238081;
+    let b = v * (0.983729 * v + 0.432951) + 0.238081;
     a / b
 }
 

@@ -380,10 +380,9 @@ fn overlay_flags(image: &mut RgbaImage, flags: &[u32], overlay_bits: u32) {
         let Some((_, _, color)) = OVERLAYS.iter().find(|(_, bit, _)| chosen & bit != 0) else {
             continue;
         };
-        for channel in 0..3 {
-            let under = pixel.0[channel] as f32;
-            let over = color[channel] as f32;
-            pixel.0[channel] = (under + (over - under) * OVERLAY_OPACITY).round() as u8;
+        for (value, &over) in pixel.0.iter_mut().zip(color) {
+            let (under, over) = (*value as f32, over as f32);
+            *value = (under + (over - under) * OVERLAY_OPACITY).round() as u8;
         }
         pixel.0[3] = 255;
     }

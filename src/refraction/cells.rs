@@ -157,6 +157,8 @@ fn bracketed_root(c: &[f64; 4], mut low: f64, mut high: f64, mut f_low: f64, f_h
 /// critical points (so each piece is monotone), root-finds pieces with a sign change, and keeps a
 /// critical point that touches zero (a double root: the point is tangent to a cross-section plane).
 /// Works unchanged when the leading coefficients vanish (quadratic, linear cases).
+// `!(low <= high)` deliberately also rejects a NaN bound; `low > high` would let it through.
+#[allow(clippy::neg_cmp_op_on_partial_ord)]
 fn cubic_roots_in(c: &[f64; 4], low: f64, high: f64, roots: &mut [f64; 3]) -> usize {
     let mut count = 0;
     let scale = c.iter().map(|x| x.abs()).fold(0.0, f64::max);
@@ -214,7 +216,8 @@ fn barycentrics_in(q: &[DVec3; 3], point: DVec3) -> Option<[f64; 3]> {
     let w = point - q[0];
     let n = e1.cross(e2);
     let n2 = n.length_squared();
-    if !(n2 > 0.0) || !n2.is_finite() {
+    // A NaN `n2` fails `is_finite`, so this rejects it just as `!(n2 > 0.0)` did.
+    if n2 <= 0.0 || !n2.is_finite() {
         return None;
     }
     let b1 = w.cross(e2).dot(n) / n2;
@@ -290,12 +293,12 @@ pub fn thesis_containment(cell: &Cell, point: DVec3) -> Option<Containment> {
         return None;
     }
     let mut ts = [0.0; 3];
-    for i in 0..3 {
-        let along = m.dot(cell.directions[i]);
+    for ((t, direction), origin) in ts.iter_mut().zip(cell.directions).zip(cell.origins) {
+        let along = m.dot(direction);
         if along.abs() < 1e-12 {
             return None;
         }
-        ts[i] = m.dot(point - cell.origins[i]) / along;
+        *t = m.dot(point - origin) / along;
     }
     let q = [0, 1, 2].map(|i| cell.origins[i] + ts[i] * cell.directions[i]);
     let b = barycentrics_in(&q, point)?;
@@ -384,8 +387,8 @@ mod tests {
                     .iter()
                     .find(|c| (c.t - t).abs() < 1e-7)
                     .unwrap_or_else(|| panic!("t {t} b {b:?}: {found:?}"));
-                for i in 0..3 {
-                    assert!((hit.barycentric[i] - b[i]).abs() < 1e-7);
+                for (found_b, expected_b) in hit.barycentric.iter().zip(b) {
+                    assert!((found_b - expected_b).abs() < 1e-7);
                 }
                 let s = sight_point_of(&cell, b);
                 assert!((hit.sight_point - s).length() < 1e-7);

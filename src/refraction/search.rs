@@ -1017,6 +1017,8 @@ fn b_deviation(b_min: Vec2, b_max: Vec2) -> f32 {
 }
 
 /// Bins block boxes into a uniform grid of `bin_m` bins (CSR by counting sort).
+// `!(lo.x <= hi.x)` treats a NaN extent like an empty one; `lo.x > hi.x` would not.
+#[allow(clippy::neg_cmp_op_on_partial_ord)]
 fn bin_blocks(boxes: &[(Vec2, Vec2)], bin_m: f32) -> Slab {
     let (mut lo, mut hi) = (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY));
     for (l, h) in boxes {

@@ -196,6 +196,9 @@ impl WaterSpec {
 }
 
 /// A built-in shape and its dimensions (metres).
+// Pool carries two texture specs inline; a scene holds a handful of these, so boxing them would only
+// add noise to every construction and pattern.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Debug, PartialEq)]
 pub enum ShapeSpec {
     /// Centred at the object's origin.

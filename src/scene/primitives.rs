@@ -39,7 +39,7 @@ fn push_triangle_facing(mesh: &mut Mesh, [a, b, c]: [u32; 3]) {
 }
 
 /// A planar grid over the parallelogram `corner + s * edge_u + t * edge_v` (s, t in [0, 1]), cells no
-/// longer than `max_edge_u_m` along u and `max_edge_v_m` along v; uvs in metres from `uv_corner_m`.
+/// longer than `max_edge_m[0]` along u and `max_edge_m[1]` along v; uvs in metres from `uv_corner_m`.
 fn add_grid(
     mesh: &mut Mesh,
     corner: DVec3,
@@ -47,11 +47,13 @@ fn add_grid(
     edge_v: DVec3,
     normal: DVec3,
     uv_corner_m: [f64; 2],
-    max_edge_u_m: f64,
-    max_edge_v_m: f64,
+    max_edge_m: [f64; 2],
 ) {
     let (len_u, len_v) = (edge_u.length(), edge_v.length());
-    let (nu, nv) = (segments(len_u, max_edge_u_m), segments(len_v, max_edge_v_m));
+    let (nu, nv) = (
+        segments(len_u, max_edge_m[0]),
+        segments(len_v, max_edge_m[1]),
+    );
     let first = mesh.positions.len() as u32;
     for j in 0..=nv {
         let t = j as f64 / nv as f64;
@@ -105,8 +107,7 @@ pub fn box_mesh(size_m: DVec3, max_edge_m: f64) -> Mesh {
             edge_v,
             normal,
             [0.0, 0.0],
-            max_edge_m,
-            max_edge_m,
+            [max_edge_m, max_edge_m],
         );
     }
     mesh
@@ -180,8 +181,7 @@ pub fn quad_mesh(size_m: [f64; 2], max_edge_m: f64) -> Mesh {
         edge_v,
         DVec3::Y,
         [0.0, 0.0],
-        max_edge_m,
-        max_edge_m,
+        [max_edge_m, max_edge_m],
     );
     mesh
 }
@@ -227,8 +227,7 @@ pub fn pool_meshes(dims: &PoolDims, max_edge_m: f64) -> PoolMeshes {
         DVec3::Z * length_z,
         DVec3::Y,
         [0.0, 0.0],
-        max_edge_m,
-        max_edge_m,
+        [max_edge_m, max_edge_m],
     );
 
     let mut walls = Mesh::default();
@@ -256,8 +255,7 @@ pub fn pool_meshes(dims: &PoolDims, max_edge_m: f64) -> PoolMeshes {
             up,
             inward,
             [0.0, 0.0],
-            max_edge_m,
-            max_edge_m,
+            [max_edge_m, max_edge_m],
         );
     }
 
@@ -314,8 +312,7 @@ pub fn pool_meshes(dims: &PoolDims, max_edge_m: f64) -> PoolMeshes {
             edge_v,
             DVec3::Y,
             deck_uv(corner),
-            max_u,
-            max_v,
+            [max_u, max_v],
         );
     }
 

@@ -302,7 +302,7 @@ mod tests {
             variation: 0.05,
             accent_color_srgb: [0.7, 0.85, 0.95],
             accent_fraction: 0.2,
-            lanes: lanes.then(|| LaneSpec {
+            lanes: lanes.then_some(LaneSpec {
                 spacing_m: 2.5,
                 width_m: 0.25,
                 color_srgb: [0.05, 0.1, 0.35],

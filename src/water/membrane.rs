@@ -186,7 +186,7 @@ impl MembraneGrid {
 
     fn facet_cell(&self, facet: u32) -> (u32, u32, CellHalf) {
         let cell = facet / 2;
-        let half = if facet % 2 == 0 {
+        let half = if facet.is_multiple_of(2) {
             CellHalf::Upper
         } else {
             CellHalf::Lower
