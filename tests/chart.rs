@@ -4,25 +4,18 @@
 //! configurations and say so (stdout, report.jsonl, EXR header, cache), and bad budgets refused
 //! with the file and line.
 
+mod common;
+use common::{snell, TINY};
+
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
 use snell::chart::budget::{self, QualityChoice};
 use snell::chart::{chart_configurations, Configuration, CSV_HEADER};
 use snell::frame::Method;
 
-const TINY: &str = include_str!("../scenes/tiny.toml");
 /// Small enough to keep the test quick, large enough that the membranes' errors differ by more
 /// than the sub-pixel measurement resolves.
 const SIZE: &str = "128x72";
-
-fn snell(args: &[&str], cwd: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_snell"))
-        .args(args)
-        .current_dir(cwd)
-        .output()
-        .expect("the snell binary runs")
-}
 
 fn write_scene(dir: &Path, name: &str, text: &str) -> PathBuf {
     let path = dir.join(name);

@@ -2,18 +2,11 @@
 //! line and column, with exit code 2 and no partial output; good input renders EXR frames and the
 //! report. Each case writes its scene into a fresh temporary directory.
 
+mod common;
+use common::{snell, TINY};
+
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-const TINY: &str = include_str!("../scenes/tiny.toml");
-
-fn snell(args: &[&str], cwd: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_snell"))
-        .args(args)
-        .current_dir(cwd)
-        .output()
-        .expect("the snell binary runs")
-}
+use std::process::Output;
 
 /// `snell render SCENE --out OUT --size 64x36 EXTRA...`, run in `cwd`.
 fn render_small(scene: &Path, out: &Path, extra: &[&str], cwd: &Path) -> Output {

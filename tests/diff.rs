@@ -3,23 +3,17 @@
 //! ball moved, a flag count changed), idiff's exit codes 0/1/2, heat maps only for frames that did
 //! not pass, JUnit XML that parses, clear errors for unreadable input, and check/bless of goldens.
 
+mod common;
+use common::{snell, TINY};
+
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 use std::sync::OnceLock;
 
 use snell::output::{read_frame_exr, write_frame_exr, FrameMeta};
 
-const TINY: &str = include_str!("../scenes/tiny.toml");
 const BALL_AT: &str = "translate = [0.2, -0.6, 0.1]";
 const SIZE: &str = "160x90";
-
-fn snell(args: &[&str], cwd: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_snell"))
-        .args(args)
-        .current_dir(cwd)
-        .output()
-        .expect("the snell binary runs")
-}
 
 fn stdout_and_stderr(output: &Output) -> String {
     format!(

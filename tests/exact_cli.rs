@@ -1,18 +1,10 @@
 //! `snell render --method exact` as a user runs it: frames, report rows naming the method and
 //! carrying the exact method's counts, and a clear refusal of a bad subdivision tolerance.
 
+mod common;
+use common::{snell, TINY};
+
 use std::path::Path;
-use std::process::{Command, Output};
-
-const TINY: &str = include_str!("../scenes/tiny.toml");
-
-fn snell(args: &[&str], cwd: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_snell"))
-        .args(args)
-        .current_dir(cwd)
-        .output()
-        .expect("the snell binary runs")
-}
 
 fn report_rows(out: &Path) -> Vec<serde_json::Value> {
     std::fs::read_to_string(out.join("report.jsonl"))

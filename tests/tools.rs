@@ -2,24 +2,17 @@
 //! library's own answers (the brute-force image search, the flat-water bisection solution, the
 //! scene's meshes and camera), and their errors on bad input (exit 2, naming the file).
 
+mod common;
+use common::{snell, TINY};
+
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
 use glam::Vec3;
 use snell::frame::RenderJob;
 use snell::refraction::flat::flat_virtual_vertex;
 use snell::refraction::search::RefractionField;
 use snell::refraction::virtual_geometry::{vertex_images, ImageSearch};
-
-const TINY: &str = include_str!("../scenes/tiny.toml");
-
-fn snell(args: &[&str], cwd: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_snell"))
-        .args(args)
-        .current_dir(cwd)
-        .output()
-        .expect("the snell binary runs")
-}
 
 fn stderr_of(output: &Output) -> String {
     String::from_utf8_lossy(&output.stderr).into_owned()

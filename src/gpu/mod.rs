@@ -9,8 +9,8 @@
 //! and above them the object seen) and
 //! depth-stencil — and run as eight draws:
 //! 1. above-water geometry (true positions, depth test), 2. membrane marks stencil = 1 where
-//! visible (no colour), 3. sky (full-screen at the far plane, only where depth is still far and the
-//! stencil unmarked, so covered pixels never shade it), 4. inside the stencil a full-screen
+//!    visible (no colour), 3. sky (full-screen at the far plane, only where depth is still far and
+//!    the stencil unmarked, so covered pixels never shade it), 4. inside the stencil a full-screen
 //!    triangle pushes depth to far and writes the deep-water colour, 5. under-water geometry at
 //!    virtual positions with true attributes, 6. inside the stencil depth is pushed to far again and
 //!    7. the membrane is redrawn depth-only, so that 8. the Fresnel blend (depth Equal) touches only
