@@ -19,7 +19,7 @@ use super::membranes::ThesisMembrane;
 use crate::refraction::cells::{thesis_containment, Cell};
 use crate::refraction::exact::{solve_sight_point, FermatProblem};
 use crate::refraction::flat::virtual_vertex;
-use crate::refraction::rays::refraction_ray;
+use crate::refraction::rays::{refract_exact, refraction_ray};
 use crate::refraction::search::MERGE_DISTANCE_PER_FACET_SIZE;
 
 /// Side of the thesis's cube of sample points, in scene units.
@@ -239,17 +239,6 @@ impl Cells {
     }
 }
 
-/// The refracted direction by Snell's law in f64 (ALGORITHM §1), for the computed vertex: None
-/// when the ray meets the surface from behind or is totally reflected (no refraction exists).
-pub fn exact_refraction(incident: DVec3, normal: DVec3, eta: f64) -> Option<DVec3> {
-    let c = -incident.dot(normal);
-    let k = 1.0 - eta * eta * (1.0 - c * c);
-    if c < 0.0 || k < 0.0 {
-        return None;
-    }
-    Some((eta * incident + (eta * c - k.sqrt()) * normal).normalize())
-}
-
 /// The first point where the ray `origin + u direction` (u > 0, travelling down) meets the exact
 /// surface on the refractor: None if it crosses the surface's height range without meeting it
 /// on the outline. The ray is sampled across the height range of the surface (where any crossing
@@ -321,7 +310,7 @@ pub fn computed_vertex(
     let direction = (virtual_position - eye).normalize();
     let hit = first_surface_hit(membrane, eye, direction)?;
     let normal = membrane.surface.as_height_field().normal(hit.x, hit.z);
-    let refracted = exact_refraction(direction, normal, eta)?;
+    let refracted = refract_exact(direction, normal, eta)?;
     Some(hit + refracted * ((virtual_position - hit).length() / eta))
 }
 

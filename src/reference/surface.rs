@@ -260,15 +260,9 @@ mod tests {
     use super::*;
     use crate::water::FnHeightField;
 
+    /// The membrane extents these tests use: squares of 8 x 8 cells.
     fn extent(half_m: f64) -> MembraneGrid {
-        MembraneGrid {
-            min_x: -half_m,
-            min_z: -half_m,
-            max_x: half_m,
-            max_z: half_m,
-            cells_x: 8,
-            cells_z: 8,
-        }
+        crate::refraction::search::test_support::square_grid(half_m, 8)
     }
 
     /// A single crest `h = a exp(-x^2 / w^2)` along z (a Gaussian ridge), with exact bounds.

@@ -380,9 +380,9 @@ mod tests {
         let normal = problem.surface.normal(s.x, s.z);
         let incident = (s - problem.eye).normalize();
         let eta = problem.n_above / problem.n_below;
-        let c = -incident.dot(normal);
-        let k = 1.0 - eta * eta * (1.0 - c * c);
-        let refracted = eta * incident + (eta * c - k.sqrt()) * normal;
+        let Some(refracted) = crate::refraction::rays::refract_exact(incident, normal, eta) else {
+            return f64::INFINITY;
+        };
         (refracted - (problem.point - s).normalize()).length()
     }
 

@@ -4,7 +4,7 @@
 //! and totally internally reflected vertices get the extrapolations of §2, continuous at their
 //! borders, so cells exist for every facet and rays never jump as the eye moves.
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
 use crate::water::Membrane;
@@ -88,6 +88,18 @@ pub fn refract(incident: Vec3, normal: Vec3, eta: f32) -> Refraction {
         radicand: k,
         extrapolation,
     }
+}
+
+/// Snell's law in f64 without extrapolation (ALGORITHM §1), for exact work (computed vertices,
+/// checks of exact sight points): None when the ray meets the surface from behind (`c < 0`) or is
+/// totally reflected (`k < 0`), where no refracted ray exists.
+pub fn refract_exact(incident: DVec3, normal: DVec3, eta: f64) -> Option<DVec3> {
+    let c = -incident.dot(normal);
+    let k = 1.0 - eta * eta * (1.0 - c * c);
+    if c < 0.0 || k < 0.0 {
+        return None;
+    }
+    Some((eta * incident + (eta * c - k.sqrt()) * normal).normalize())
 }
 
 /// Schlick's approximation of the reflected fraction (ALGORITHM §3). `cos_incidence` is `c`,
@@ -276,6 +288,23 @@ mod tests {
         // Under TIR the extrapolated ray points back to the eye's side.
         let deep = refract(incident_with_cos(0.1), Vec3::Y, eta);
         assert!(deep.direction.y > 0.0);
+    }
+
+    #[test]
+    fn exact_refraction_agrees_with_the_f32_ray_and_refuses_where_it_extrapolates() {
+        for incidence_deg in [0.0f32, 20.0, 45.0, 70.0, 89.0] {
+            let incident = direction_at_deg(incidence_deg);
+            let expected = refract(incident, Vec3::Y, AIR / WATER).direction;
+            let exact = refract_exact(incident.as_dvec3(), DVec3::Y, (AIR / WATER) as f64).unwrap();
+            assert!(
+                (exact.as_vec3() - expected).length() < 1e-6,
+                "{incidence_deg} deg"
+            );
+        }
+        // Back-facing (the ray meets the surface from below) and total internal reflection.
+        assert_eq!(refract_exact(DVec3::Y, DVec3::Y, 0.75), None);
+        let grazing_out_of_water = direction_at_deg(80.0).as_dvec3();
+        assert_eq!(refract_exact(grazing_out_of_water, DVec3::Y, 1.333), None);
     }
 
     #[test]

@@ -231,15 +231,9 @@ mod tests {
         }
     }
 
+    /// The membrane extents these tests use: squares of 8 x 8 cells.
     fn extent(half_m: f64) -> MembraneGrid {
-        MembraneGrid {
-            min_x: -half_m,
-            min_z: -half_m,
-            max_x: half_m,
-            max_z: half_m,
-            cells_x: 8,
-            cells_z: 8,
-        }
+        crate::refraction::search::test_support::square_grid(half_m, 8)
     }
 
     /// A vertical wall (x from -2 to 2, y from -1.5 to 1.5 at z = 0.3) tessellated n x n: it crosses the
