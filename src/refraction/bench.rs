@@ -200,6 +200,11 @@ fn pool_scenario() -> (WaterSurface, Membrane, Vec<Vec3>, RefractionSetup) {
     (pool_surface, pool_membrane, pool_points, pool_setup)
 }
 
+#[cfg(test)]
+pub(crate) fn pool_scenario_for_tests() -> (WaterSurface, Membrane, Vec<Vec3>, RefractionSetup) {
+    pool_scenario()
+}
+
 /// Runs both scenarios (`repetitions` times each, median) and checks that the accelerated and
 /// brute-force answers agree on the thesis-scale run.
 pub fn bench_search_with(repetitions: usize) -> SearchBenchFigures {

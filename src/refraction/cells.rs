@@ -118,11 +118,22 @@ fn quadratic_roots(a: f64, b: f64, c: f64) -> ([f64; 2], usize) {
     }
 }
 
-/// A root of the cubic in `[low, high]` where it changes sign (safeguarded Newton with bisection).
-fn bracketed_root(c: &[f64; 4], mut low: f64, mut high: f64, mut f_low: f64, f_high: f64) -> f64 {
-    // Start at the secant point: for the nearly linear determinants of ordinary cells Newton then
-    // converges in a couple of steps.
-    let mut t = low + (high - low) * (f_low / (f_low - f_high));
+/// A root of the cubic in `[low, high]` where it changes sign (safeguarded Newton with bisection),
+/// started at `hint` when it lies inside.
+fn bracketed_root(
+    c: &[f64; 4],
+    mut low: f64,
+    mut high: f64,
+    mut f_low: f64,
+    f_high: f64,
+    hint: f64,
+) -> f64 {
+    // Start at the hint (the caller's estimate of the root), else at the secant point.
+    let mut t = if hint > low && hint < high {
+        hint
+    } else {
+        low + (high - low) * (f_low / (f_low - f_high))
+    };
     if !(t > low && t < high) {
         t = 0.5 * (low + high);
     }
@@ -139,6 +150,18 @@ fn bracketed_root(c: &[f64; 4], mut low: f64, mut high: f64, mut f_low: f64, f_h
         }
         let d = eval_derivative(c, t);
         let newton = t - f / d;
+        // Converged: the Newton step is below the resolution (it may round to no step at all, so
+        // this must come before the bracket test, which would otherwise bisect a converged root).
+        // Or the step is small enough that Newton's quadratic convergence (error after the step
+        // about |f''/2f'| step^2) leaves less than the tolerance.
+        let step = (newton - t).abs();
+        let tolerance = 1e-14 * (1.0 + t.abs());
+        if step <= tolerance
+            || (step <= 1e-6 * (1.0 + t.abs())
+                && (c[2] + 3.0 * c[3] * t).abs() * step * step <= 0.1 * tolerance * d.abs())
+        {
+            return newton.clamp(low, high);
+        }
         let next = if d != 0.0 && newton > low && newton < high {
             newton
         } else {
@@ -159,13 +182,21 @@ fn bracketed_root(c: &[f64; 4], mut low: f64, mut high: f64, mut f_low: f64, f_h
 /// Works unchanged when the leading coefficients vanish (quadratic, linear cases).
 // `!(low <= high)` deliberately also rejects a NaN bound; `low > high` would let it through.
 #[allow(clippy::neg_cmp_op_on_partial_ord)]
-fn cubic_roots_in(c: &[f64; 4], low: f64, high: f64, roots: &mut [f64; 3]) -> usize {
+fn cubic_roots_in(c: &[f64; 4], low: f64, high: f64, hint: f64, roots: &mut [f64; 3]) -> usize {
     let mut count = 0;
     let scale = c.iter().map(|x| x.abs()).fold(0.0, f64::max);
     if scale == 0.0 || !(low <= high) {
         return 0;
     }
-    let (critical, n_critical) = quadratic_roots(3.0 * c[3], 2.0 * c[2], c[1]);
+    // Monotone on the interval when the linear term of the derivative outweighs the others at
+    // every |t| <= reach: no critical point to look for (the common, nearly linear case).
+    let reach = low.abs().max(high.abs());
+    let bend = 2.0 * c[2].abs() * reach + 3.0 * c[3].abs() * reach * reach;
+    let (critical, n_critical) = if c[1].abs() > bend * (1.0 + 1e-9) {
+        ([0.0; 2], 0)
+    } else {
+        quadratic_roots(3.0 * c[3], 2.0 * c[2], c[1])
+    };
     let mut knots = [low, 0.0, 0.0, high];
     let mut n_knots = 1;
     for &k in &critical[..n_critical] {
@@ -200,7 +231,7 @@ fn cubic_roots_in(c: &[f64; 4], low: f64, high: f64, roots: &mut [f64; 3]) -> us
             push(a, &mut count);
         }
         if fa != 0.0 && fb != 0.0 && (fa < 0.0) != (fb < 0.0) {
-            push(bracketed_root(c, a, b, fa, fb), &mut count);
+            push(bracketed_root(c, a, b, fa, fb, hint), &mut count);
         }
         if w == n_knots - 2 && fb == 0.0 {
             push(b, &mut count);
@@ -261,13 +292,28 @@ fn t_upper_bound(cell: &Cell, point: DVec3) -> f64 {
     }
 }
 
+/// Where the root usually is: the ray parameter at which the mean of the three rays reaches the
+/// point's height (a cross-section through the point is near that height). Only a starting point
+/// for the root finder: any value, even NaN, gives the same roots.
+fn depth_parameter(cell: &Cell, point: DVec3) -> f64 {
+    let [p0, p1, p2] = cell.origins;
+    let [t0, t1, t2] = cell.directions;
+    ((p0.y + p1.y + p2.y) - 3.0 * point.y) / -(t0.y + t1.y + t2.y)
+}
+
 /// Equal-t containment (ALGORITHM §5.3, default): every root `t >= 0` of the cubic at which the
 /// barycentrics of `point` in the cross-section are all `>= -CONTAINMENT_EPS`.
 pub fn equal_t_containments(cell: &Cell, point: DVec3) -> Containments {
     let mut out = Containments::default();
     let coefficients = containment_cubic(cell, point);
     let mut roots = [0.0; 3];
-    let n = cubic_roots_in(&coefficients, 0.0, t_upper_bound(cell, point), &mut roots);
+    let n = cubic_roots_in(
+        &coefficients,
+        0.0,
+        t_upper_bound(cell, point),
+        depth_parameter(cell, point),
+        &mut roots,
+    );
     for &t in &roots[..n] {
         let q = cell.cross_section(t);
         if let Some(b) = barycentrics_in(&q, point) {
@@ -352,20 +398,20 @@ mod tests {
         assert!((r[0] - 1.0).abs() < 1e-15 && (r[1] - 2.0).abs() < 1e-15);
         let mut roots = [0.0; 3];
         // (t-1)(t-2)(t-3)
-        let n = cubic_roots_in(&[-6.0, 11.0, -6.0, 1.0], 0.0, 10.0, &mut roots);
+        let n = cubic_roots_in(&[-6.0, 11.0, -6.0, 1.0], 0.0, 10.0, f64::NAN, &mut roots);
         assert_eq!(n, 3);
         for (r, e) in roots.iter().zip([1.0, 2.0, 3.0]) {
             assert!((r - e).abs() < 1e-12);
         }
         // Leading coefficient zero: linear.
-        let n = cubic_roots_in(&[-1.0, 2.0, 0.0, 0.0], 0.0, 10.0, &mut roots);
+        let n = cubic_roots_in(&[-1.0, 2.0, 0.0, 0.0], 0.0, 10.0, f64::NAN, &mut roots);
         assert_eq!((n, roots[0]), (1, 0.5));
         // Tiny leading coefficient: the small roots are still found accurately.
-        let n = cubic_roots_in(&[-6.0, 5.0, 1.0, 1e-14], 0.0, 10.0, &mut roots);
+        let n = cubic_roots_in(&[-6.0, 5.0, 1.0, 1e-14], 0.0, 10.0, f64::NAN, &mut roots);
         assert_eq!(n, 1);
         assert!((roots[0] - 1.0).abs() < 1e-9, "{}", roots[0]);
         // Double root (t-2)^2 (t+1) = t^3 - 3t^2 + 4
-        let n = cubic_roots_in(&[4.0, 0.0, -3.0, 1.0], 0.0, 10.0, &mut roots);
+        let n = cubic_roots_in(&[4.0, 0.0, -3.0, 1.0], 0.0, 10.0, f64::NAN, &mut roots);
         assert_eq!(n, 1);
         assert!((roots[0] - 2.0).abs() < 1e-9);
     }

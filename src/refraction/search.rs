@@ -110,6 +110,115 @@ struct FacetFootprint {
     b_deviation: f32,
 }
 
+const EMPTY_FOOTPRINT: FacetFootprint = FacetFootprint {
+    lines: [Footprint {
+        a: Vec2::ZERO,
+        b: Vec2::ZERO,
+    }; 3],
+    b_deviation: 0.0,
+};
+
+/// Facets tested together by [`lanes_may_contain`]: the lanes of one chunk.
+const LANES: usize = 8;
+
+/// Up to [`LANES`] facets of one block in structure-of-arrays form, so the footprint test of all
+/// of them compiles to a few vector instructions. Unused lanes hold NaN footprints (they never
+/// pass: every comparison with NaN is false) and facet `u32::MAX`.
+#[derive(Clone, Copy, Debug)]
+struct LaneChunk {
+    /// Per corner k: `A.x`, `A.z`, `B.x`, `B.z` of each lane's footprint line k.
+    ax: [[f32; LANES]; 3],
+    az: [[f32; LANES]; 3],
+    bx: [[f32; LANES]; 3],
+    bz: [[f32; LANES]; 3],
+    /// Per lane: the spread of the facet's three `B` (see [`FacetFootprint::b_deviation`]).
+    b_deviation: [f32; LANES],
+    facet: [u32; LANES],
+}
+
+impl LaneChunk {
+    fn new(facets: &[(u32, FacetFootprint)]) -> Self {
+        let mut chunk = Self {
+            ax: [[f32::NAN; LANES]; 3],
+            az: [[f32::NAN; LANES]; 3],
+            bx: [[f32::NAN; LANES]; 3],
+            bz: [[f32::NAN; LANES]; 3],
+            b_deviation: [f32::NAN; LANES],
+            facet: [u32::MAX; LANES],
+        };
+        for (lane, (facet, footprint)) in facets.iter().enumerate().take(LANES) {
+            for k in 0..3 {
+                let line = footprint.lines[k];
+                chunk.ax[k][lane] = line.a.x;
+                chunk.az[k][lane] = line.a.y;
+                chunk.bx[k][lane] = line.b.x;
+                chunk.bz[k][lane] = line.b.y;
+            }
+            chunk.b_deviation[lane] = footprint.b_deviation;
+            chunk.facet[lane] = *facet;
+        }
+        chunk
+    }
+}
+
+/// What a query evaluates of a block: [`BlockBound::box_at`] and [`BlockBound::height_delta`]
+/// rearranged so they need no division (the one division is done once, in the build, and
+/// padded for its rounding).
+#[derive(Clone, Copy, Debug)]
+struct BlockQuery {
+    a_min: Vec2,
+    a_max: Vec2,
+    b_min: Vec2,
+    b_max: Vec2,
+    /// `Delta(y) = delta_base + delta_slope * max(0, reach_top - y)`.
+    delta_base: f32,
+    delta_slope: f32,
+    reach_top: f32,
+    b_deviation_max: f32,
+    slack: f32,
+}
+
+impl BlockQuery {
+    fn new(bound: &BlockBound) -> Self {
+        let eps = CONTAINMENT_EPS as f32;
+        let widen = 1.0 + 8.0 * eps;
+        let denominator = bound.min_descent - 6.0 * eps * bound.facet_descent_spread;
+        Self {
+            a_min: bound.a_min,
+            a_max: bound.a_max,
+            b_min: bound.b_min,
+            b_max: bound.b_max,
+            delta_base: bound.facet_height_span * widen * (1.0 + 1e-6),
+            // The quotient of `height_delta`, with a few ulps for the reciprocal's rounding.
+            delta_slope: bound.facet_descent_spread / denominator * widen * (1.0 + 1e-6),
+            reach_top: bound.top_y + 6.0 * eps * bound.facet_height_span,
+            b_deviation_max: bound.b_deviation_max,
+            slack: bound.slack,
+        }
+    }
+
+    /// At least [`BlockBound::height_delta`]`(y)`.
+    #[inline(always)]
+    fn height_delta(&self, y: f32) -> f32 {
+        self.delta_base + self.delta_slope * (self.reach_top - y).max(0.0)
+    }
+
+    /// Can a cell of the block contain a point at height `y`, horizontal position `v`? The test
+    /// of [`BlockBound::box_at`] (its box, at least as large).
+    #[inline(always)]
+    fn may_contain(&self, v: Vec2, y: f32, delta: f32) -> bool {
+        let (p, q) = (self.b_min * y, self.b_max * y);
+        let lo = self.a_min + p.min(q);
+        let hi = self.a_max + p.max(q);
+        let pad = Vec2::splat(growth_radius_from(delta, self.b_deviation_max) + self.slack)
+            + (hi - lo).max(Vec2::ZERO) * (4.0 * CONTAINMENT_EPS as f32 * (1.0 + 1e-6));
+        (v.x >= lo.x - pad.x)
+            & (v.y >= lo.y - pad.y)
+            & (v.x <= hi.x + pad.x)
+            & (v.y <= hi.y + pad.y)
+    }
+}
+
 /// What a block of facets needs for its conservative bound.
 #[derive(Clone, Copy, Debug)]
 struct BlockBound {
@@ -168,9 +277,10 @@ impl BlockBound {
         (self.facet_height_span + self.facet_descent_spread * t_max) * (1.0 + 8.0 * eps)
     }
 
+    /// The reference for [`BlockQuery::may_contain`] (tests).
     /// [`Self::box_between`]`(y, y)` with the duplicate products dropped: the same values (min and
     /// max over the same set), fewer operations on the query path.
-    #[inline(always)]
+    #[cfg(test)]
     fn box_at(&self, y: f32) -> (Vec2, Vec2) {
         let (p, q) = (self.b_min * y, self.b_max * y);
         let mut lo = self.a_min + Vec2::splat(f32::INFINITY).min(p).min(q);
@@ -232,10 +342,13 @@ pub struct RefractionField<'a> {
     /// Regular facets per block (CSR, ascending facet index).
     block_starts: Vec<u32>,
     block_facets: Vec<u32>,
-    /// The three footprint lines of each entry of `block_facets`, stored alongside so the hot
-    /// loop reads one contiguous run per block instead of chasing triangle and vertex indices.
-    block_facet_footprints: Vec<FacetFootprint>,
+    /// The facets of each block with their footprint lines, in chunks of [`LANES`] (CSR over
+    /// `block_chunk_starts`), so the hot loop reads one contiguous run per block instead of
+    /// chasing triangle and vertex indices.
+    block_chunk_starts: Vec<u32>,
+    block_chunks: Vec<LaneChunk>,
     block_bounds: Vec<BlockBound>,
+    block_queries: Vec<BlockQuery>,
     /// Facets with a ray that gets no footprint bound: always tested.
     unbounded_facets: Vec<u32>,
     slab_y_low: f32,
@@ -248,12 +361,8 @@ pub struct RefractionField<'a> {
     crest_tolerance_m: f64,
     surface_y_min: f64,
     surface_y_max: f64,
-    /// Crest check prefilter: (min, max) vertex height over the 3 x 3 tiles (of `BLOCK_CELLS`
-    /// grid cells) around each tile, row-major.
-    tile_heights: Vec<[f32; 2]>,
-    tiles_x: usize,
-    tiles_z: usize,
-    tile_size_m: [f64; 2],
+    /// Crest check prefilter ([`TileLevel`]).
+    tiles: Option<TileLevel>,
     /// The height the crest check compares against (see [`CrestHeights`]).
     crest_heights: CrestHeights,
 }
@@ -334,7 +443,7 @@ impl<'a> RefractionField<'a> {
             .max(query_low.abs())
             .max(query_high.abs());
 
-        let (tile_heights, tiles_x, tiles_z, tile_size_m) = tile_height_ranges(membrane);
+        let tiles = tile_level(membrane);
         let mut field = Self {
             membrane,
             surface,
@@ -344,17 +453,16 @@ impl<'a> RefractionField<'a> {
             footprints,
             block_starts: Vec::new(),
             block_facets: Vec::new(),
-            block_facet_footprints: Vec::new(),
+            block_chunk_starts: Vec::new(),
+            block_chunks: Vec::new(),
             block_bounds: Vec::new(),
+            block_queries: Vec::new(),
             unbounded_facets: Vec::new(),
             slab_y_low: 0.0,
             slab_thickness_m: 1.0,
             slabs: Vec::new(),
             footprint_slack: 0.0,
-            tile_heights,
-            tiles_x,
-            tiles_z,
-            tile_size_m,
+            tiles,
             spacing_m,
             crest_tolerance_m,
             crest_heights,
@@ -386,6 +494,9 @@ impl<'a> RefractionField<'a> {
         let cell_z_m = (grid.max_z - grid.min_z) / grid.cells_z.max(1) as f64;
         let positions = &self.membrane.positions;
         let footprints = &self.footprints;
+        let (min_x, min_z) = (grid.min_x as f32, grid.min_z as f32);
+        let inverse_block_x = (1.0 / (cell_x_m * BLOCK_CELLS as f64)) as f32;
+        let inverse_block_z = (1.0 / (cell_z_m * BLOCK_CELLS as f64)) as f32;
         // Block of each facet, by its centroid (any assignment is correct: bounds come from the
         // facet's own rays; the centroid keeps blocks compact); u32::MAX = no footprint bound.
         let facet_block: Vec<u32> = self
@@ -401,12 +512,10 @@ impl<'a> RefractionField<'a> {
                     + positions[tri[1] as usize]
                     + positions[tri[2] as usize])
                     / 3.0;
-                let ix = (((c.x as f64 - grid.min_x) / cell_x_m).floor().max(0.0) as usize
-                    / BLOCK_CELLS)
-                    .min(blocks_x - 1);
-                let iz = (((c.z as f64 - grid.min_z) / cell_z_m).floor().max(0.0) as usize
-                    / BLOCK_CELLS)
-                    .min(blocks_z - 1);
+                // `as` truncates toward zero and saturates negatives (and NaN) to 0: a floor
+                // for the cells inside, some block for the rest.
+                let ix = (((c.x - min_x) * inverse_block_x) as usize).min(blocks_x - 1);
+                let iz = (((c.z - min_z) * inverse_block_z) as usize).min(blocks_z - 1);
                 (iz * blocks_x + ix) as u32
             })
             .collect();
@@ -469,19 +578,42 @@ impl<'a> RefractionField<'a> {
             .collect();
         let b_len_global = bounds.iter().fold(0.0_f32, |m, b| m.max(b.b_len_max));
         self.footprint_slack = 64.0 * f32::EPSILON * coordinate_scale * (1.0 + b_len_global);
-        self.block_facet_footprints = facets
+        let footprint_of = |facet: u32| {
+            let lines = triangles[facet as usize].map(|i| footprints[i as usize]);
+            let b_min = lines[0].b.min(lines[1].b).min(lines[2].b);
+            let b_max = lines[0].b.max(lines[1].b).max(lines[2].b);
+            FacetFootprint {
+                lines,
+                b_deviation: b_deviation(b_min, b_max),
+            }
+        };
+        // Chunks per block (CSR), and the run of facets of each chunk.
+        let mut chunk_starts = vec![0u32; block_count + 1];
+        let mut chunk_runs = Vec::with_capacity(facets.len().div_ceil(LANES) + block_count);
+        for b in 0..block_count {
+            let (start, end) = (starts[b], starts[b + 1]);
+            let mut at = start;
+            while at < end {
+                let next = (at + LANES as u32).min(end);
+                chunk_runs.push((at, next));
+                at = next;
+            }
+            chunk_starts[b + 1] = chunk_runs.len() as u32;
+        }
+        self.block_chunks = chunk_runs
             .par_iter()
-            .with_min_len(4096)
-            .map(|&facet| {
-                let lines = triangles[facet as usize].map(|i| footprints[i as usize]);
-                let b_min = lines[0].b.min(lines[1].b).min(lines[2].b);
-                let b_max = lines[0].b.max(lines[1].b).max(lines[2].b);
-                FacetFootprint {
-                    lines,
-                    b_deviation: b_deviation(b_min, b_max),
+            .with_min_len(512)
+            .map(|&(start, end)| {
+                let mut lanes = [(u32::MAX, EMPTY_FOOTPRINT); LANES];
+                let run = &facets[start as usize..end as usize];
+                for (lane, &facet) in lanes.iter_mut().zip(run) {
+                    *lane = (facet, footprint_of(facet));
                 }
+                LaneChunk::new(&lanes[..run.len()])
             })
             .collect();
+        self.block_chunk_starts = chunk_starts;
+        self.block_queries = bounds.iter().map(BlockQuery::new).collect();
         self.block_starts = starts;
         self.block_facets = facets;
         self.block_bounds = bounds;
@@ -553,40 +685,48 @@ impl<'a> RefractionField<'a> {
             return;
         }
         let slab = &self.slabs[(slab_f as usize).min(self.slabs.len() - 1)];
-        let v = Vec2::new(point.x, point.z);
         let point64 = point.as_dvec3();
-        let bx = ((v.x - slab.origin.x) * slab.inverse_bin_m).floor();
-        let bz = ((v.y - slab.origin.y) * slab.inverse_bin_m).floor();
-        if bx >= 0.0 && bz >= 0.0 && (bx as usize) < slab.bins_x && (bz as usize) < slab.bins_z {
-            let bin = bz as usize * slab.bins_x + bx as usize;
-            let entries =
-                &slab.blocks[slab.bin_starts[bin] as usize..slab.bin_starts[bin + 1] as usize];
-            for &block in entries {
-                let bound = &self.block_bounds[block as usize];
-                let (lo, hi) = bound.box_at(point.y);
-                if v.x < lo.x || v.y < lo.y || v.x > hi.x || v.y > hi.y {
-                    continue;
-                }
-                let delta = bound.height_delta(point.y);
-                let run = self.block_starts[block as usize] as usize
-                    ..self.block_starts[block as usize + 1] as usize;
-                for (&facet, footprint) in self.block_facets[run.clone()]
-                    .iter()
-                    .zip(&self.block_facet_footprints[run])
-                {
-                    let radius =
-                        growth_radius_from(delta, footprint.b_deviation) + self.footprint_slack;
-                    if footprint_may_contain(&footprint.lines, v, point.y, radius) {
-                        self.push_containments(facet, point64, out);
-                    }
-                }
-            }
-        }
+        self.for_each_candidate(slab, point, |facet| {
+            self.push_containments(facet, point64, out)
+        });
         for &facet in &self.unbounded_facets {
             self.push_containments(facet, point64, out);
         }
         out.sort_unstable_by(|a, b| a.facet.cmp(&b.facet).then(a.t.total_cmp(&b.t)));
         self.merge_and_check_crests(point64, out);
+    }
+
+    /// Calls `visit` with every regular facet whose footprint test `point` passes in `slab`'s
+    /// bin: the blocks listed there whose box at the point's height holds it, then their facets'
+    /// grown footprint triangles, [`LANES`] at a time.
+    #[inline(always)]
+    fn for_each_candidate(&self, slab: &Slab, point: Vec3, mut visit: impl FnMut(u32)) {
+        let v = Vec2::new(point.x, point.z);
+        let bx = ((v.x - slab.origin.x) * slab.inverse_bin_m).floor();
+        let bz = ((v.y - slab.origin.y) * slab.inverse_bin_m).floor();
+        if !(bx >= 0.0 && bz >= 0.0 && (bx as usize) < slab.bins_x && (bz as usize) < slab.bins_z) {
+            return;
+        }
+        let bin = bz as usize * slab.bins_x + bx as usize;
+        let entries =
+            &slab.blocks[slab.bin_starts[bin] as usize..slab.bin_starts[bin + 1] as usize];
+        for &block in entries {
+            let query = &self.block_queries[block as usize];
+            let delta = query.height_delta(point.y);
+            if !query.may_contain(v, point.y, delta) {
+                continue;
+            }
+            let chunks = self.block_chunk_starts[block as usize] as usize
+                ..self.block_chunk_starts[block as usize + 1] as usize;
+            for chunk in &self.block_chunks[chunks] {
+                let mut mask = lanes_may_contain(chunk, v, point.y, delta, self.footprint_slack);
+                while mask != 0 {
+                    let lane = mask.trailing_zeros() as usize;
+                    mask &= mask - 1;
+                    visit(chunk.facet[lane]);
+                }
+            }
+        }
     }
 
     /// Size of the search structure: (slabs, bins, block entries, blocks). For tuning.
@@ -620,25 +760,16 @@ impl<'a> RefractionField<'a> {
                 &slab.blocks[slab.bin_starts[bin] as usize..slab.bin_starts[bin + 1] as usize];
             work[0] = entries.len();
             for &block in entries {
-                let bound = &self.block_bounds[block as usize];
-                let (lo, hi) = bound.box_at(point.y);
-                if v.x < lo.x || v.y < lo.y || v.x > hi.x || v.y > hi.y {
-                    continue;
-                }
-                work[1] += 1;
-                let delta = bound.height_delta(point.y);
-                let run = self.block_starts[block as usize] as usize
-                    ..self.block_starts[block as usize + 1] as usize;
-                for footprint in &self.block_facet_footprints[run] {
-                    work[2] += 1;
-                    let radius =
-                        growth_radius_from(delta, footprint.b_deviation) + self.footprint_slack;
-                    if footprint_may_contain(&footprint.lines, v, point.y, radius) {
-                        work[3] += 1;
-                    }
+                let query = &self.block_queries[block as usize];
+                if query.may_contain(v, point.y, query.height_delta(point.y)) {
+                    work[1] += 1;
+                    work[2] += (self.block_starts[block as usize + 1]
+                        - self.block_starts[block as usize])
+                        as usize;
                 }
             }
         }
+        self.for_each_candidate(slab, point, |_| work[3] += 1);
         work
     }
 
@@ -742,8 +873,16 @@ impl<'a> RefractionField<'a> {
     /// every `CREST_SAMPLE_STEP_PER_SPACING` spacings, only on the parts of the segments inside the
     /// surface's height range.
     pub fn crest_blocks(&self, sight_point: DVec3, point: DVec3) -> bool {
+        self.crest_blocks_with(sight_point, point, true)
+    }
+
+    /// [`Self::crest_blocks`], with the slope proof (`prove`) or walking every segment.
+    fn crest_blocks_with(&self, sight_point: DVec3, point: DVec3, prove: bool) -> bool {
         let eye = self.setup.eye.as_dvec3();
         let tolerance = self.crest_tolerance_m;
+        // The proof that lets most paths skip the walk: a segment from S whose slope beats the
+        // interpolated surface's Lipschitz bound by enough, from the guard distance on, cannot
+        // meet it (see `segment_clear_by_slope`).
         // Eye side: points above surface_y_max + tolerance cannot be under the surface.
         let to_eye = eye - sight_point;
         let eye_end = if to_eye.y > 0.0 {
@@ -755,10 +894,8 @@ impl<'a> RefractionField<'a> {
         // interpolated surface (within its cell's vertex heights) cannot be above it here or
         // anywhere within a tile ahead (the segment only rises toward the eye): skip a tile.
         let under = |x: DVec3| {
-            if let Some([_, high]) = self.tile_height_range(x.x, x.z) {
-                if x.y >= high as f64 {
-                    return Probe::ClearAhead;
-                }
+            if let Some(reach_m) = self.clear_reach(x, |[_, high]| x.y >= high as f64) {
+                return Probe::ClearAhead(reach_m);
             }
             if x.y < self.crest_height(x.x, x.z) - tolerance {
                 Probe::Hit
@@ -766,7 +903,9 @@ impl<'a> RefractionField<'a> {
                 Probe::Clear
             }
         };
-        if self.segment_hits(sight_point, to_eye, eye_end, to_eye.y >= 0.0, under) {
+        if !(prove && self.segment_clear_by_slope(sight_point, to_eye, eye_end, 1.0))
+            && self.segment_hits(sight_point, to_eye, eye_end, to_eye.y >= 0.0, under)
+        {
             return true;
         }
         let to_point = point - sight_point;
@@ -776,10 +915,8 @@ impl<'a> RefractionField<'a> {
             1.0
         };
         let over = |x: DVec3| {
-            if let Some([low, _]) = self.tile_height_range(x.x, x.z) {
-                if x.y <= low as f64 {
-                    return Probe::ClearAhead;
-                }
+            if let Some(reach_m) = self.clear_reach(x, |[low, _]| x.y <= low as f64) {
+                return Probe::ClearAhead(reach_m);
             }
             if x.y > self.crest_height(x.x, x.z) + tolerance {
                 Probe::Hit
@@ -787,7 +924,41 @@ impl<'a> RefractionField<'a> {
                 Probe::Clear
             }
         };
-        self.segment_hits(sight_point, to_point, point_end, to_point.y <= 0.0, over)
+        !(prove && self.segment_clear_by_slope(sight_point, to_point, point_end, -1.0))
+            && self.segment_hits(sight_point, to_point, point_end, to_point.y <= 0.0, over)
+    }
+
+    /// Proves that no sample of [`Self::segment_hits`] on `start + s * direction`, s in
+    /// (guard, end], can report a crest, without sampling: true only when that holds (false
+    /// means "not proven", and the walk decides). `side` is +1 for the eye segment (a hit is a
+    /// sample below the surface less the tolerance) and -1 for the segment under water (above
+    /// it plus the tolerance).
+    ///
+    /// With `d` the horizontal distance of a sample from S (`d >= guard`), the segment's height
+    /// moves away from `S.y` by `side * rise * d` (`rise` = its slope), while the interpolated
+    /// surface moves by at most `slope_bound * d` from its height at S, which is within
+    /// `facet_gap_bound` (plus rounding) of `S.y` (S lies on a facet of the same cell). A hit
+    /// needs `(rise - slope_bound) * d < gap - tolerance`; with `rise >= slope_bound` that is
+    /// impossible once `(rise - slope_bound) * guard >= gap - tolerance`. Only inside the grid:
+    /// elsewhere the check's surface is the exact one, with no bound at hand.
+    fn segment_clear_by_slope(&self, start: DVec3, direction: DVec3, end: f64, side: f64) -> bool {
+        let heights = &self.crest_heights;
+        let stop = start + direction * end.max(0.0);
+        if !(heights.covers(start.x, start.z) && heights.covers(stop.x, stop.z)) {
+            return false;
+        }
+        let horizontal = (direction.x * direction.x + direction.z * direction.z).sqrt();
+        let guard_m = CREST_GUARD_PER_SPACING * self.spacing_m;
+        // S is stored in f32: its height may be off by the rounding of its coordinates. And its
+        // barycentrics may be down to -CONTAINMENT_EPS, so it may lie just outside its facet
+        // (a few eps of a cell diagonal), where the facet's plane and the interpolated heights
+        // part at up to twice the slope bound.
+        let rounding_m = 4.0 * f32::EPSILON as f64 * (1.0 + start.abs().max_element())
+            + 2.0 * heights.slope_bound * 4.0 * CONTAINMENT_EPS * heights.cell_diagonal_m;
+        let excess_m = heights.facet_gap_bound + rounding_m - self.crest_tolerance_m;
+        // (rise - slope_bound) * guard >= excess, times `horizontal` (>= 0) to avoid dividing.
+        side * direction.y * guard_m
+            >= heights.slope_bound * guard_m * horizontal + excess_m.max(0.0) * horizontal
     }
 
     /// The surface height the crest check uses at (x, z): the membrane vertices' bilinear
@@ -799,17 +970,22 @@ impl<'a> RefractionField<'a> {
             .unwrap_or_else(|| self.surface.height(x, z))
     }
 
-    /// (min, max) vertex height of the membrane's 3 x 3 tiles around (x, z); None outside it.
+    /// How far around `x` (horizontally) the tiles prove the surface clear: the tile reach if
+    /// the range of the tile holding `x` passes `clear`.
     #[inline]
-    fn tile_height_range(&self, x: f64, z: f64) -> Option<[f32; 2]> {
+    fn clear_reach(&self, x: DVec3, clear: impl Fn([f32; 2]) -> bool) -> Option<f64> {
+        let tiles = self.tiles.as_ref()?;
         let grid = self.membrane.grid;
-        let tx = (x - grid.min_x) / self.tile_size_m[0];
-        let tz = (z - grid.min_z) / self.tile_size_m[1];
-        if tx >= 0.0 && tz >= 0.0 && (tx as usize) < self.tiles_x && (tz as usize) < self.tiles_z {
-            Some(self.tile_heights[tz as usize * self.tiles_x + tx as usize])
-        } else {
-            None
+        let (dx, dz) = (x.x - grid.min_x, x.z - grid.min_z);
+        if !(dx >= 0.0 && dz >= 0.0) {
+            return None;
         }
+        let (tx, tz) = (
+            (dx * tiles.inverse_size_m[0]) as usize,
+            (dz * tiles.inverse_size_m[1]) as usize,
+        );
+        (tx < tiles.tiles_x && tz < tiles.tiles_z && clear(tiles.ranges[tz * tiles.tiles_x + tx]))
+            .then_some(tiles.reach_m)
     }
 
     /// Walks `start + s * direction` for s in (guard, end] every `CREST_SAMPLE_STEP_PER_SPACING`
@@ -829,16 +1005,22 @@ impl<'a> RefractionField<'a> {
             return false;
         }
         let step_m = CREST_SAMPLE_STEP_PER_SPACING * self.spacing_m;
-        let skip_m = self.tile_size_m[0].min(self.tile_size_m[1]).max(step_m);
+        let per_m = end / horizontal_m;
         let mut along_m = guard_m;
         loop {
             let at_m = along_m.min(horizontal_m);
-            let advance_m = match probe(start + direction * (end * at_m / horizontal_m)) {
+            let advance_m = match probe(start + direction * (at_m * per_m)) {
                 Probe::Hit => return true,
-                Probe::ClearAhead if can_skip => skip_m,
+                // Clear for `reach` ahead: nothing left to sample if that passes the end.
+                Probe::ClearAhead(reach_m) if can_skip => {
+                    if at_m + reach_m >= horizontal_m {
+                        return false;
+                    }
+                    reach_m.max(step_m)
+                }
                 _ => step_m,
             };
-            if at_m >= horizontal_m || (advance_m == skip_m && at_m + skip_m >= horizontal_m) {
+            if at_m >= horizontal_m {
                 return false;
             }
             along_m = at_m + advance_m;
@@ -849,7 +1031,8 @@ impl<'a> RefractionField<'a> {
 /// Can the cell with the footprint lines `lines` (of its facet's three vertices) contain a point at
 /// height `y` with horizontal position `v`? Never false for a point the exact test accepts (see
 /// the module docs for the bound).
-#[inline(always)]
+/// The scalar reference of [`lanes_may_contain`] (tests).
+#[cfg(test)]
 fn footprint_may_contain(lines: &[Footprint; 3], v: Vec2, y: f32, radius: f32) -> bool {
     let f = lines.map(|fp| fp.a + y * fp.b);
     let twice_area = (f[1] - f[0]).perp_dot(f[2] - f[0]);
@@ -868,32 +1051,78 @@ fn footprint_may_contain(lines: &[Footprint; 3], v: Vec2, y: f32, radius: f32) -
     true
 }
 
+/// [`footprint_may_contain`] for every lane of `chunk` at once (bit i of the result: lane i may
+/// contain the point), with each lane's radius `growth_radius_from(delta, b_deviation) + slack`.
+/// The same arithmetic lane by lane, written without branches so it vectorises; a NaN lane
+/// fails every comparison and never passes.
+#[inline(always)]
+fn lanes_may_contain(chunk: &LaneChunk, v: Vec2, y: f32, delta: f32, slack: f32) -> u32 {
+    let area_eps = CONTAINMENT_EPS as f32 * 1.01;
+    let mut inside = [false; LANES];
+    // Indexing every array by lane (not iterating one of them) is what vectorises.
+    #[allow(clippy::needless_range_loop)]
+    for lane in 0..LANES {
+        let radius = growth_radius_from(delta, chunk.b_deviation[lane]) + slack;
+        let fx = [0, 1, 2].map(|k| chunk.ax[k][lane] + y * chunk.bx[k][lane]);
+        let fz = [0, 1, 2].map(|k| chunk.az[k][lane] + y * chunk.bz[k][lane]);
+        let twice_area = (fx[1] - fx[0]) * (fz[2] - fz[0]) - (fz[1] - fz[0]) * (fx[2] - fx[0]);
+        let sign = if twice_area >= 0.0 { 1.0 } else { -1.0 };
+        let area_slack = area_eps * twice_area.abs();
+        let mut all = true;
+        for k in 0..3 {
+            let (from, to) = ((k + 1) % 3, (k + 2) % 3);
+            let (ex, ez) = (fx[to] - fx[from], fz[to] - fz[from]);
+            let side = sign * (ex * (v.y - fz[from]) - ez * (v.x - fx[from]));
+            let margin = area_slack + (ex.abs() + ez.abs()) * radius;
+            all &= side >= -margin;
+        }
+        inside[lane] = all;
+    }
+    inside
+        .iter()
+        .enumerate()
+        .fold(0, |mask, (lane, &is)| mask | ((is as u32) << lane))
+}
+
 /// One sample of the crest walk.
 enum Probe {
     /// The path crosses the surface here.
     Hit,
     /// Not here.
     Clear,
-    /// Not here, nor within a tile ahead if the path moves away from the surface.
-    ClearAhead,
+    /// Not here, nor within this horizontal distance ahead if the path moves away from the
+    /// surface.
+    ClearAhead(f64),
 }
 
-/// (min, max) vertex height over the 3 x 3 tiles around each tile of `BLOCK_CELLS x BLOCK_CELLS`
-/// grid cells (vertices on the borders included), with the tile grid's size; empty when the membrane is not the grid its
-/// `grid` describes (the crest check then evaluates every sample exactly).
-#[allow(clippy::type_complexity)]
-fn tile_height_ranges(membrane: &Membrane) -> (Vec<[f32; 2]>, usize, usize, [f64; 2]) {
+/// The crest check's tiles: per tile of `BLOCK_CELLS x BLOCK_CELLS` cells, the (min, max) vertex
+/// height over the 3 x 3 tiles around it, so the bound holds within one tile of any point of the
+/// tile. Tiles whose 3 x 3 neighbourhood reaches past the grid hold `[-inf, inf]` (no bound: past
+/// the grid the check's surface is the exact one).
+#[derive(Debug)]
+struct TileLevel {
+    ranges: Vec<[f32; 2]>,
+    tiles_x: usize,
+    tiles_z: usize,
+    inverse_size_m: [f64; 2],
+    /// The smaller side: how far a bound of this level reaches from any point of its tile.
+    reach_m: f64,
+}
+
+/// The tiles of `BLOCK_CELLS x BLOCK_CELLS` grid cells; None when the membrane is not the grid
+/// its `grid` describes (the crest check then evaluates every sample).
+fn tile_level(membrane: &Membrane) -> Option<TileLevel> {
     let grid = membrane.grid;
     let (cx, cz) = (grid.cells_x as usize, grid.cells_z as usize);
     if cx == 0 || cz == 0 || membrane.positions.len() != (cx + 1) * (cz + 1) {
-        return (Vec::new(), 0, 0, [1.0, 1.0]);
+        return None;
     }
     let (tiles_x, tiles_z) = (cx.div_ceil(BLOCK_CELLS), cz.div_ceil(BLOCK_CELLS));
-    let tile_size_m = [
+    let size_m = [
         (grid.max_x - grid.min_x) / cx as f64 * BLOCK_CELLS as f64,
         (grid.max_z - grid.min_z) / cz as f64 * BLOCK_CELLS as f64,
     ];
-    let heights = (0..tiles_x * tiles_z)
+    let raw = (0..tiles_x * tiles_z)
         .into_par_iter()
         .with_min_len(1024)
         .map(|tile| {
@@ -909,22 +1138,31 @@ fn tile_height_ranges(membrane: &Membrane) -> (Vec<[f32; 2]>, usize, usize, [f64
         })
         .collect::<Vec<[f32; 2]>>();
     // Dilate to the 3 x 3 neighbourhood: a bound valid a whole tile around any point of the tile.
-    let dilated = (0..tiles_x * tiles_z)
+    let ranges = (0..tiles_x * tiles_z)
         .into_par_iter()
         .with_min_len(1024)
         .map(|tile| {
             let (tx, tz) = (tile % tiles_x, tile / tiles_x);
+            if tx == 0 || tz == 0 || tx + 1 >= tiles_x || tz + 1 >= tiles_z {
+                return [f32::NEG_INFINITY, f32::INFINITY];
+            }
             let mut range = [f32::INFINITY, f32::NEG_INFINITY];
-            for nz in tz.saturating_sub(1)..=(tz + 1).min(tiles_z - 1) {
-                for nx in tx.saturating_sub(1)..=(tx + 1).min(tiles_x - 1) {
-                    let r = heights[nz * tiles_x + nx];
+            for nz in tz - 1..=tz + 1 {
+                for nx in tx - 1..=tx + 1 {
+                    let r = raw[nz * tiles_x + nx];
                     range = [range[0].min(r[0]), range[1].max(r[1])];
                 }
             }
             range
         })
         .collect();
-    (dilated, tiles_x, tiles_z, tile_size_m)
+    Some(TileLevel {
+        ranges,
+        tiles_x,
+        tiles_z,
+        inverse_size_m: [1.0 / size_m[0], 1.0 / size_m[1]],
+        reach_m: size_m[0].min(size_m[1]),
+    })
 }
 
 /// The membrane's vertex heights on its grid, interpolated bilinearly: the surface of the crest
@@ -936,6 +1174,15 @@ struct CrestHeights {
     cells: [usize; 2],
     origin_m: [f64; 2],
     inverse_cell_m: [f64; 2],
+    /// Lipschitz bound of the interpolated heights over the grid (m per horizontal m): inside a
+    /// cell the bilinear gradient is linear in (u, w), so its components are bounded by the
+    /// cell's edge differences; the largest over all cells bounds every straight path.
+    slope_bound: f64,
+    /// Largest gap between the bilinear heights and either triangle of a cell: a facet of cell
+    /// `h00 h10 h01 h11` differs from the bilinear patch by `u w tau` (or `(1-u)(1-w) tau`) with
+    /// `tau = h00 + h11 - h10 - h01`, at most `|tau| / 4`.
+    facet_gap_bound: f64,
+    cell_diagonal_m: f64,
 }
 
 impl CrestHeights {
@@ -951,6 +1198,9 @@ impl CrestHeights {
             cells: [0, 0],
             origin_m: [0.0, 0.0],
             inverse_cell_m: [1.0, 1.0],
+            slope_bound: f64::INFINITY,
+            facet_gap_bound: f64::INFINITY,
+            cell_diagonal_m: f64::INFINITY,
         };
         if cx == 0
             || cz == 0
@@ -969,12 +1219,50 @@ impl CrestHeights {
         if !on_grid {
             return empty;
         }
+        let heights: Vec<f64> = membrane.positions.iter().map(|p| p.y as f64).collect();
+        // Per row of cells: (largest |x-edge difference|, largest |z-edge difference|, largest |tau|).
+        let (dx, dz, twist) = (0..cz)
+            .into_par_iter()
+            .with_min_len(16)
+            .map(|iz| {
+                let row = &heights[iz * (cx + 1)..(iz + 2) * (cx + 1)];
+                let (near, far) = row.split_at(cx + 1);
+                let mut m = (0.0_f64, 0.0_f64, 0.0_f64);
+                for ix in 0..cx {
+                    let (h00, h10, h01, h11) = (near[ix], near[ix + 1], far[ix], far[ix + 1]);
+                    m.0 = m.0.max((h10 - h00).abs()).max((h11 - h01).abs());
+                    m.1 = m.1.max((h01 - h00).abs()).max((h11 - h10).abs());
+                    m.2 = m.2.max((h00 + h11 - h10 - h01).abs());
+                }
+                m
+            })
+            .reduce(
+                || (0.0, 0.0, 0.0),
+                |a, b| (a.0.max(b.0), a.1.max(b.1), a.2.max(b.2)),
+            );
+        let (gx, gz) = (dx / cell_m[0], dz / cell_m[1]);
         Self {
-            heights: membrane.positions.iter().map(|p| p.y as f64).collect(),
+            heights,
             cells: [cx, cz],
             origin_m: [grid.min_x, grid.min_z],
             inverse_cell_m: [1.0 / cell_m[0], 1.0 / cell_m[1]],
+            // Padded for the rounding of the differences and of the interpolation itself.
+            slope_bound: (gx * gx + gz * gz).sqrt() * (1.0 + 1e-9),
+            facet_gap_bound: twist * 0.25 * (1.0 + 1e-9),
+            cell_diagonal_m: cell_m[0].hypot(cell_m[1]),
         }
+    }
+
+    /// Is (x, z) inside the grid (where `height` interpolates)?
+    #[inline]
+    fn covers(&self, x: f64, z: f64) -> bool {
+        let fx = (x - self.origin_m[0]) * self.inverse_cell_m[0];
+        let fz = (z - self.origin_m[1]) * self.inverse_cell_m[1];
+        !self.heights.is_empty()
+            && fx >= 0.0
+            && fz >= 0.0
+            && fx <= self.cells[0] as f64
+            && fz <= self.cells[1] as f64
     }
 
     /// Bilinear height at (x, z); None outside the grid (or without one).
@@ -1484,6 +1772,142 @@ mod tests {
         assert!(!assert_same(&field, Vec3::new(-1.5, -0.3, 0.0), "in front").is_empty());
     }
 
+    /// The slope proof only skips walks that would find nothing: on random membranes (steep ones
+    /// included), eyes from grazing to overhead and paths through random points, the crest check
+    /// with the proof gives the walk's answer for every path, and the proof does skip walks.
+    #[test]
+    fn slope_proof_never_changes_the_crest_answer() {
+        let mut rng = Rng(0x5EED_C2E5);
+        let (mut paths, mut blocked, mut proven) = (0, 0, 0);
+        for case in 0..12 {
+            let steepness = [0.1, 0.4, 0.9][case % 3];
+            let surface = random_waves(&mut rng, 1 + case % 4, steepness);
+            let membrane = membrane_from(&surface, square_grid(2.0, 16 + 8 * (case as u32 % 3)));
+            let elevation = rng.range(0.03, 1.5);
+            let azimuth = rng.range(0.0, std::f64::consts::TAU);
+            let eye = DVec3::new(
+                3.0 * elevation.cos() * azimuth.cos(),
+                (3.0 * elevation.sin()).max(0.2),
+                3.0 * elevation.cos() * azimuth.sin(),
+            );
+            let field =
+                RefractionField::build(&membrane, &surface, setup(eye.as_vec3()), (-2.0, 0.2));
+            for _ in 0..400 {
+                // A sight point on a random facet, a point anywhere below.
+                let facet = (rng.unit() * membrane.triangles.len() as f64) as usize;
+                let corners = membrane.triangles[facet].map(|i| membrane.positions[i as usize]);
+                let (u, w) = (rng.unit(), rng.unit());
+                let (u, w) = if u + w > 1.0 {
+                    (1.0 - u, 1.0 - w)
+                } else {
+                    (u, w)
+                };
+                let sight = (corners[0].as_dvec3() * (1.0 - u - w)
+                    + corners[1].as_dvec3() * u
+                    + corners[2].as_dvec3() * w)
+                    .as_vec3()
+                    .as_dvec3();
+                let point = DVec3::new(
+                    rng.range(-2.5, 2.5),
+                    rng.range(-2.0, -0.01),
+                    rng.range(-2.5, 2.5),
+                );
+                let walked = field.crest_blocks_with(sight, point, false);
+                assert_eq!(
+                    field.crest_blocks(sight, point),
+                    walked,
+                    "case {case}: sight point {sight}, point {point}"
+                );
+                paths += 1;
+                blocked += walked as usize;
+                proven += field.segment_clear_by_slope(sight, point - sight, 1.0, -1.0) as usize
+                    + field.segment_clear_by_slope(sight, eye - sight, 1.0, 1.0) as usize;
+            }
+        }
+        assert!(
+            blocked > 0 && blocked < paths,
+            "{blocked} of {paths} blocked"
+        );
+        assert!(proven > paths / 4, "{proven} proofs over {paths} paths");
+    }
+
+    /// The lane test is the scalar footprint test, lane for lane, on random footprints (all
+    /// orientations, thin and degenerate ones included), points, heights and radii.
+    #[test]
+    fn lane_footprint_test_matches_the_scalar_one() {
+        let mut rng = Rng(0x5EED_1A4E);
+        let mut passed = 0;
+        for _ in 0..4000 {
+            let lanes: Vec<(u32, FacetFootprint)> = (0..1 + (rng.unit() * 8.0) as usize)
+                .map(|i| {
+                    let base = Vec2::new(rng.range(-1.0, 1.0) as f32, rng.range(-1.0, 1.0) as f32);
+                    let lines = [0, 1, 2].map(|_| Footprint {
+                        a: base
+                            + Vec2::new(rng.range(-0.1, 0.1) as f32, rng.range(-0.1, 0.1) as f32),
+                        b: Vec2::new(rng.range(-1.0, 1.0) as f32, rng.range(-1.0, 1.0) as f32),
+                    });
+                    let lines = if i == 3 { [lines[0]; 3] } else { lines };
+                    let b_min = lines[0].b.min(lines[1].b).min(lines[2].b);
+                    let b_max = lines[0].b.max(lines[1].b).max(lines[2].b);
+                    let footprint = FacetFootprint {
+                        lines,
+                        b_deviation: b_deviation(b_min, b_max),
+                    };
+                    (i as u32, footprint)
+                })
+                .collect();
+            let chunk = LaneChunk::new(&lanes);
+            let y = rng.range(-2.0, 0.0) as f32;
+            let v = Vec2::new(rng.range(-1.5, 1.5) as f32, rng.range(-1.5, 1.5) as f32);
+            let (delta, slack) = (rng.range(0.0, 0.05) as f32, 1e-6);
+            let mask = lanes_may_contain(&chunk, v, y, delta, slack);
+            for lane in 0..LANES {
+                let expected = lanes.get(lane).is_some_and(|(_, f)| {
+                    let radius = growth_radius_from(delta, f.b_deviation) + slack;
+                    footprint_may_contain(&f.lines, v, y, radius)
+                });
+                assert_eq!(mask >> lane & 1 == 1, expected, "lane {lane} of {lanes:?}");
+                passed += expected as usize;
+            }
+        }
+        assert!(passed > 100, "{passed}");
+    }
+
+    /// A block's query box holds its reference box (`BlockBound::box_at`) at every height: the
+    /// corners of the reference box pass `BlockQuery::may_contain`.
+    #[test]
+    fn block_query_box_holds_the_reference_box() {
+        let mut rng = Rng(0x5EED_B0C5);
+        for _ in 0..20_000 {
+            let a = Vec2::new(rng.range(-20.0, 20.0) as f32, rng.range(-20.0, 20.0) as f32);
+            let b = Vec2::new(rng.range(-3.0, 3.0) as f32, rng.range(-3.0, 3.0) as f32);
+            let (da, db) = (rng.range(0.0, 0.3) as f32, rng.range(0.0, 0.2) as f32);
+            let mut bound = BlockBound::empty();
+            bound.a_min = a;
+            bound.a_max = a + Vec2::new(da, 0.7 * da);
+            bound.b_min = b;
+            bound.b_max = b + Vec2::new(0.5 * db, db);
+            bound.b_len_max = (b.abs() + Vec2::splat(db)).element_sum();
+            bound.b_deviation_max = b_deviation(bound.b_min, bound.b_max);
+            bound.facet_height_span = rng.range(0.0, 0.05) as f32;
+            bound.facet_descent_spread = rng.range(0.0, 0.1) as f32;
+            bound.top_y = rng.range(-0.2, 0.2) as f32;
+            bound.min_descent = rng.range(MIN_DESCENT as f64, 1.0) as f32;
+            bound.slack = 64.0 * f32::EPSILON * 30.0;
+            let query = BlockQuery::new(&bound);
+            let y = rng.range(-3.0, 0.5) as f32;
+            let delta = query.height_delta(y);
+            assert!(delta >= bound.height_delta(y), "{bound:?} at {y}");
+            let (lo, hi) = bound.box_at(y);
+            for corner in [lo, hi, Vec2::new(lo.x, hi.y), Vec2::new(hi.x, lo.y)] {
+                assert!(
+                    query.may_contain(corner, y, delta),
+                    "{corner} of {bound:?} at {y}"
+                );
+            }
+        }
+    }
+
     #[test]
     fn thesis_mode_matches_its_brute_force_and_equal_t_on_flat_water() {
         let surface = Waves::default();
@@ -1532,5 +1956,170 @@ mod tests {
                 );
             }
         }
+    }
+}
+
+/// Tuning aids (ignored tests, single-threaded, fastest of several runs) timing the query's
+/// stages on the benchmark's pool scenario:
+/// `cargo test --release --lib search::tuning -- --ignored --nocapture`.
+#[cfg(test)]
+mod tuning {
+    use super::*;
+    use std::time::Instant;
+
+    fn slab_of<'a>(field: &'a RefractionField, p: Vec3) -> &'a Slab {
+        let slab_f = (p.y - field.slab_y_low) / field.slab_thickness_m;
+        &field.slabs[(slab_f as usize).min(field.slabs.len() - 1)]
+    }
+
+    fn gather() -> Vec<(Cell, DVec3)> {
+        let (surface, membrane, points, setup) =
+            crate::refraction::bench::pool_scenario_for_tests();
+        let field = RefractionField::build(&membrane, &surface, setup, (-2.0, 0.0));
+        let mut cells = Vec::new();
+        for p in &points {
+            field.for_each_candidate(slab_of(&field, *p), *p, |f| {
+                cells.push((field.cell(f), p.as_dvec3()))
+            });
+        }
+        cells
+    }
+
+    #[test]
+    #[ignore]
+    fn containment_only() {
+        let cells = gather();
+        let mut best = f64::INFINITY;
+        let mut n = 0;
+        let mut t = 0.0;
+        for _ in 0..40 {
+            let s = Instant::now();
+            n = 0;
+            t = 0.0;
+            for (c, p) in &cells {
+                let r = super::super::cells::equal_t_containments(c, *p);
+                n += r.len();
+                for x in r.iter() {
+                    t += x.t;
+                }
+            }
+            best = best.min(s.elapsed().as_secs_f64());
+        }
+        println!(
+            "CONTAINMENT {} calls {:.1} ns/call n {n} sum t {t:.12}",
+            cells.len(),
+            best / cells.len() as f64 * 1e9
+        );
+    }
+
+    #[test]
+    #[ignore]
+    fn crest_only() {
+        let (surface, membrane, points, setup) =
+            crate::refraction::bench::pool_scenario_for_tests();
+        let field = RefractionField::build(&membrane, &surface, setup, (-2.0, 0.0));
+        let mut pairs = Vec::new();
+        let mut out = Vec::new();
+        for p in &points {
+            field.images(*p, &mut out);
+            for im in &out {
+                pairs.push((im.sight_point.as_dvec3(), p.as_dvec3()));
+            }
+        }
+        let eye = field.setup.eye.as_dvec3();
+        let (mut a, mut b) = (0, 0);
+        for (sp, p) in &pairs {
+            if field.segment_clear_by_slope(*sp, eye - *sp, 1.0, 1.0) {
+                a += 1;
+            }
+            if field.segment_clear_by_slope(*sp, *p - *sp, 1.0, -1.0) {
+                b += 1;
+            }
+        }
+        println!(
+            "CREST pairs {} eye proven {a} point proven {b} slope {} gap {} tol {}",
+            pairs.len(),
+            field.crest_heights.slope_bound,
+            field.crest_heights.facet_gap_bound,
+            field.crest_tolerance_m
+        );
+        let mut best = f64::INFINITY;
+        let mut n = 0;
+        for _ in 0..20 {
+            let s = Instant::now();
+            n = 0;
+            for (sp, p) in &pairs {
+                n += field.crest_blocks(*sp, *p) as usize;
+            }
+            best = best.min(s.elapsed().as_secs_f64());
+        }
+        println!(
+            "CREST {:.1} ns/call blocked {n}",
+            best / pairs.len() as f64 * 1e9
+        );
+    }
+
+    #[test]
+    #[ignore]
+    fn build_only() {
+        let (surface, membrane, _points, setup) =
+            crate::refraction::bench::pool_scenario_for_tests();
+        let s = Instant::now();
+        for _ in 0..100 {
+            let f = RefractionField::build(&membrane, &surface, setup, (-2.0, 0.0));
+            drop(f);
+        }
+        println!("build {:.2} ms", s.elapsed().as_secs_f64() * 10.0);
+    }
+
+    #[test]
+    #[ignore]
+    fn breakdown() {
+        let (surface, membrane, points, setup) =
+            crate::refraction::bench::pool_scenario_for_tests();
+        let field = RefractionField::build(&membrane, &surface, setup, (-2.0, 0.0));
+        let pts: Vec<Vec3> = points.clone();
+        let time = |name: &str, f: &dyn Fn(Vec3) -> usize| {
+            let mut best = f64::INFINITY;
+            let mut n = 0;
+            for _ in 0..7 {
+                let s = Instant::now();
+                n = 0;
+                for p in &pts {
+                    n += f(*p);
+                }
+                best = best.min(s.elapsed().as_secs_f64());
+            }
+            println!(
+                "{name}: {:.1} ns/query ({n})",
+                best / pts.len() as f64 * 1e9
+            );
+        };
+        let out = std::cell::RefCell::new(Vec::new());
+        time("candidates", &|p| {
+            let mut n = 0;
+            field.for_each_candidate(slab_of(&field, p), p, |_| n += 1);
+            n
+        });
+        time("candidates+containment", &|p| {
+            let o = &mut out.borrow_mut();
+            o.clear();
+            field.for_each_candidate(slab_of(&field, p), p, |f| {
+                field.push_containments(f, p.as_dvec3(), o)
+            });
+            o.len()
+        });
+        time("images", &|p| {
+            field.images(p, &mut out.borrow_mut());
+            out.borrow().len()
+        });
+        let mut best = f64::INFINITY;
+        for _ in 0..10 {
+            let s = Instant::now();
+            let f = RefractionField::build(&membrane, &surface, setup, (-2.0, 0.0));
+            best = best.min(s.elapsed().as_secs_f64());
+            drop(f);
+        }
+        println!("build {:.2} ms (2 threads)", best * 1e3);
     }
 }
