@@ -416,6 +416,61 @@ mod tests {
         assert!((roots[0] - 2.0).abs() < 1e-9);
     }
 
+    /// The hint only picks where Newton starts: any hint, inside or outside the interval, on a
+    /// root, on a critical point or NaN, gives the same roots.
+    #[test]
+    fn the_root_finder_hint_does_not_change_the_roots() {
+        let cubics: [[f64; 4]; 5] = [
+            [-6.0, 11.0, -6.0, 1.0],
+            [-6.0, 5.0, 1.0, 1e-14],
+            [4.0, 0.0, -3.0, 1.0],
+            [
+                -0.009433435015671399,
+                0.0008202018926952801,
+                0.0005637721898486885,
+                3.7e-5,
+            ],
+            [
+                -0.008245528364004134,
+                0.006763817322168615,
+                -0.0010756909461731834,
+                -7.8e-5,
+            ],
+        ];
+        for c in cubics {
+            let mut reference = [0.0; 3];
+            let n = cubic_roots_in(&c, 0.0, 10.0, f64::NAN, &mut reference);
+            for hint in [
+                -1.0,
+                0.0,
+                0.5,
+                1.0,
+                1.5,
+                2.0,
+                2.5,
+                3.0,
+                3.17,
+                9.99,
+                10.0,
+                50.0,
+                f64::INFINITY,
+            ] {
+                let mut roots = [0.0; 3];
+                assert_eq!(
+                    cubic_roots_in(&c, 0.0, 10.0, hint, &mut roots),
+                    n,
+                    "{c:?} hint {hint}"
+                );
+                for (r, e) in roots[..n].iter().zip(&reference[..n]) {
+                    assert!(
+                        (r - e).abs() <= 1e-9 * (1.0 + e.abs()),
+                        "{c:?} hint {hint}: {r} vs {e}"
+                    );
+                }
+            }
+        }
+    }
+
     #[test]
     fn points_built_inside_the_cell_are_found_with_their_parameters() {
         let cell = test_cell();
