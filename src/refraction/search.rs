@@ -507,6 +507,7 @@ impl<'a> RefractionField<'a> {
         let (min_x, min_z) = (grid.min_x as f32, grid.min_z as f32);
         let inverse_block_x = (1.0 / (cell_x_m * BLOCK_CELLS as f64)) as f32;
         let inverse_block_z = (1.0 / (cell_z_m * BLOCK_CELLS as f64)) as f32;
+        let (last_x, last_z) = ((blocks_x - 1) as f32, (blocks_z - 1) as f32);
         // Block of each facet, by its centroid (any assignment is correct: bounds come from the
         // facet's own rays; the centroid keeps blocks compact); u32::MAX = no footprint bound.
         let facet_block: Vec<u32> = self
@@ -522,11 +523,16 @@ impl<'a> RefractionField<'a> {
                     + positions[tri[1] as usize]
                     + positions[tri[2] as usize])
                     / 3.0;
-                // `as` truncates toward zero and saturates negatives (and NaN) to 0: a floor
-                // for the cells inside, some block for the rest.
-                let ix = (((c.x - min_x) * inverse_block_x) as usize).min(blocks_x - 1);
-                let iz = (((c.z - min_z) * inverse_block_z) as usize).min(blocks_z - 1);
-                (iz * blocks_x + ix) as u32
+                // Clamped in f32 (`max` then `min` also turn a NaN into 0), then truncated: a
+                // floor for the cells inside, some block for the rest.
+                let index = |offset: f32, last: f32| {
+                    let clamped = offset.max(0.0).min(last);
+                    // SAFETY: `clamped` is finite and in [0, last], last < blocks <= u32::MAX.
+                    unsafe { clamped.to_int_unchecked::<u32>() }
+                };
+                let ix = index((c.x - min_x) * inverse_block_x, last_x);
+                let iz = index((c.z - min_z) * inverse_block_z, last_z);
+                iz * blocks_x as u32 + ix
             })
             .collect();
         let mut starts = vec![0u32; block_count + 1];
@@ -1350,21 +1356,37 @@ fn bin_blocks(boxes: &[(Vec2, Vec2)], bin_m: f32) -> Slab {
     let inverse_bin_m = 1.0 / bin;
     let bins_x = ((extent.x * inverse_bin_m).floor() as usize + 1).max(1);
     let bins_z = ((extent.y * inverse_bin_m).floor() as usize + 1).max(1);
-    let range = |l: Vec2, h: Vec2| {
-        // Offsets from `lo` are >= 0, so truncation is floor (and `as` saturates negatives to 0).
-        let x0 = (((l.x - lo.x) * inverse_bin_m) as usize).min(bins_x - 1);
-        let z0 = (((l.y - lo.y) * inverse_bin_m) as usize).min(bins_z - 1);
-        let x1 = (((h.x - lo.x) * inverse_bin_m) as usize).min(bins_x - 1);
-        let z1 = (((h.y - lo.y) * inverse_bin_m) as usize).min(bins_z - 1);
-        (x0, z0, x1, z1)
+    let (last_x, last_z) = ((bins_x - 1) as f32, (bins_z - 1) as f32);
+    // Bin coordinate of an offset from `lo`: clamped in f32 first (`max` then `min` also turn a
+    // NaN into 0), so the truncation to an integer is in range and needs no saturation checks.
+    let bin_of = |offset: f32, last: f32| {
+        let clamped = (offset * inverse_bin_m).max(0.0).min(last);
+        // SAFETY: `clamped` is finite and in [0, last], last < bins <= u32::MAX.
+        unsafe { clamped.to_int_unchecked::<u32>() }
     };
+    // Each box's bin range, computed once for both passes (u32::MAX: empty box).
+    let ranges: Vec<[u32; 4]> = boxes
+        .iter()
+        .map(|(l, h)| {
+            if l.x <= h.x {
+                [
+                    bin_of(l.x - lo.x, last_x),
+                    bin_of(l.y - lo.y, last_z),
+                    bin_of(h.x - lo.x, last_x),
+                    bin_of(h.y - lo.y, last_z),
+                ]
+            } else {
+                [u32::MAX; 4]
+            }
+        })
+        .collect();
     let mut starts = vec![0u32; bins_x * bins_z + 1];
-    for (l, h) in boxes {
-        if l.x <= h.x {
-            let (x0, z0, x1, z1) = range(*l, *h);
-            for z in z0..=z1 {
-                for x in x0..=x1 {
-                    starts[z * bins_x + x + 1] += 1;
+    for &[x0, z0, x1, z1] in &ranges {
+        if x0 != u32::MAX {
+            for z in z0 as usize..=z1 as usize {
+                for slot in &mut starts[z * bins_x + x0 as usize + 1..=z * bins_x + x1 as usize + 1]
+                {
+                    *slot += 1;
                 }
             }
         }
@@ -1374,12 +1396,10 @@ fn bin_blocks(boxes: &[(Vec2, Vec2)], bin_m: f32) -> Slab {
     }
     let mut cursor = starts.clone();
     let mut blocks = vec![0u32; starts[bins_x * bins_z] as usize];
-    for (b, (l, h)) in boxes.iter().enumerate() {
-        if l.x <= h.x {
-            let (x0, z0, x1, z1) = range(*l, *h);
-            for z in z0..=z1 {
-                for x in x0..=x1 {
-                    let slot = &mut cursor[z * bins_x + x];
+    for (b, &[x0, z0, x1, z1]) in ranges.iter().enumerate() {
+        if x0 != u32::MAX {
+            for z in z0 as usize..=z1 as usize {
+                for slot in &mut cursor[z * bins_x + x0 as usize..=z * bins_x + x1 as usize] {
                     blocks[*slot as usize] = b as u32;
                     *slot += 1;
                 }
