@@ -2133,6 +2133,31 @@ mod tuning {
 
     #[test]
     #[ignore]
+    fn lanes_only() {
+        let (surface, membrane, points, setup) =
+            crate::refraction::bench::pool_scenario_for_tests();
+        let field = RefractionField::build(&membrane, &surface, setup, (-2.0, 0.0));
+        let chunks = &field.block_chunks[..4096];
+        let mut best = f64::INFINITY;
+        let mut n = 0;
+        for _ in 0..20 {
+            let s = Instant::now();
+            n = 0;
+            for (i, c) in chunks.iter().enumerate() {
+                let p = points[i * 7];
+                n += lanes_may_contain(c, Vec2::new(p.x, p.z), p.y, 0.01, 1e-6).count_ones()
+                    as usize;
+            }
+            best = best.min(s.elapsed().as_secs_f64());
+        }
+        println!(
+            "LANES {:.1} ns/chunk ({n})",
+            best / chunks.len() as f64 * 1e9
+        );
+    }
+
+    #[test]
+    #[ignore]
     fn build_only() {
         let (surface, membrane, _points, setup) =
             crate::refraction::bench::pool_scenario_for_tests();
