@@ -1102,6 +1102,7 @@ fn read_back(device: &wgpu::Device, targets: &FrameTargets) -> Result<RenderedFr
         .recv()
         .map_err(|_| GpuError::Readback("the map callback never ran".to_string()))?
         .map_err(|error| GpuError::Readback(error.to_string()))?;
+    let mapped = std::time::Instant::now();
     let frame = {
         let bytes = slice
             .get_mapped_range()
@@ -1109,6 +1110,10 @@ fn read_back(device: &wgpu::Device, targets: &FrameTargets) -> Result<RenderedFr
         unpack_frame(&bytes, targets)
     };
     targets.readback.unmap();
+    log::debug!(
+        "readback: unpacking {:.1} ms",
+        mapped.elapsed().as_secs_f64() * 1e3
+    );
     Ok(frame)
 }
 
@@ -1121,52 +1126,68 @@ fn word(bytes: &[u8], at: usize) -> u32 {
 const OBJECT_SHIFT: u32 = 8;
 
 /// Removes the row padding and converts every layer to the CPU types of [`RenderedFrame`].
+/// Rows are converted in parallel (rayon) straight into preallocated layers: done on one thread
+/// with a push per value, this was ~6.7 ms of a ~60 ms 1280x720 pool frame on the 2-core machine,
+/// run while the rasteriser's threads sit idle.
 fn unpack_frame(bytes: &[u8], targets: &FrameTargets) -> RenderedFrame {
+    use rayon::prelude::*;
     let (width, height) = (targets.width as usize, targets.height as usize);
     let pixel_count = width * height;
     let mut frame = RenderedFrame {
         width: targets.width,
         height: targets.height,
-        beauty_rgba: Vec::with_capacity(pixel_count),
-        distance_m: Vec::with_capacity(pixel_count),
-        position: Vec::with_capacity(pixel_count),
-        flags: Vec::with_capacity(pixel_count),
-        object: Vec::with_capacity(pixel_count),
+        beauty_rgba: vec![[0.0; 4]; pixel_count],
+        distance_m: vec![0.0; pixel_count],
+        position: vec![[0.0; 3]; pixel_count],
+        flags: vec![0; pixel_count],
+        object: vec![0; pixel_count],
     };
     let beauty_pitch = padded_bytes_per_row(targets.width, targets.beauty_bytes_per_pixel) as usize;
     let position_pitch = padded_bytes_per_row(targets.width, 16) as usize;
     let flags_pitch = padded_bytes_per_row(targets.width, 4) as usize;
     let [beauty_at, position_at, flags_at] = targets.readback_offsets.map(|offset| offset as usize);
-    let half_floats = targets.beauty_bytes_per_pixel == 8;
-    for y in 0..height {
-        let row = &bytes[beauty_at + y * beauty_pitch..]
-            [..width * targets.beauty_bytes_per_pixel as usize];
-        if half_floats {
-            frame.beauty_rgba.extend(row.chunks_exact(8).map(|pixel| {
-                std::array::from_fn(|c| {
-                    f16_bits_to_f32(u16::from_le_bytes([pixel[2 * c], pixel[2 * c + 1]]))
-                })
-            }));
-        } else {
-            frame.beauty_rgba.extend(
-                row.chunks_exact(16)
-                    .map(|pixel| std::array::from_fn(|c| f32::from_bits(word(pixel, 4 * c)))),
-            );
-        }
-        let row = &bytes[position_at + y * position_pitch..][..width * 16];
-        for pixel in row.chunks_exact(16) {
-            frame
-                .position
-                .push(std::array::from_fn(|c| f32::from_bits(word(pixel, 4 * c))));
-            frame.distance_m.push(f32::from_bits(word(pixel, 12)));
-        }
-        let row = &bytes[flags_at + y * flags_pitch..][..width * 4];
-        for pixel in row.chunks_exact(4) {
-            let packed = word(pixel, 0);
-            frame.flags.push(packed & ((1 << OBJECT_SHIFT) - 1));
-            frame.object.push(packed >> OBJECT_SHIFT);
-        }
-    }
+    let beauty_bytes_per_pixel = targets.beauty_bytes_per_pixel as usize;
+    frame
+        .beauty_rgba
+        .par_chunks_mut(width)
+        .zip(frame.position.par_chunks_mut(width))
+        .zip(frame.distance_m.par_chunks_mut(width))
+        .zip(frame.flags.par_chunks_mut(width))
+        .zip(frame.object.par_chunks_mut(width))
+        .enumerate()
+        .for_each(|(y, ((((beauty, position), distance), flags), object))| {
+            let row = &bytes[beauty_at + y * beauty_pitch..][..width * beauty_bytes_per_pixel];
+            if beauty_bytes_per_pixel == 8 {
+                for (out, pixel) in beauty.iter_mut().zip(row.chunks_exact(8)) {
+                    *out = std::array::from_fn(|c| {
+                        f16_bits_to_f32(u16::from_le_bytes([pixel[2 * c], pixel[2 * c + 1]]))
+                    });
+                }
+            } else {
+                for (out, pixel) in beauty.iter_mut().zip(row.chunks_exact(16)) {
+                    *out = std::array::from_fn(|c| f32::from_bits(word(pixel, 4 * c)));
+                }
+            }
+            let row = &bytes[position_at + y * position_pitch..][..width * 16];
+            for ((out, distance), pixel) in position
+                .iter_mut()
+                .zip(distance.iter_mut())
+                .zip(row.chunks_exact(16))
+            {
+                *out = std::array::from_fn(|c| f32::from_bits(word(pixel, 4 * c)));
+                *distance = f32::from_bits(word(pixel, 12));
+            }
+            let row = &bytes[flags_at + y * flags_pitch..][..width * 4];
+            for ((flag, object), pixel) in flags
+                .iter_mut()
+                .zip(object.iter_mut())
+                .zip(row.chunks_exact(4))
+            {
+                let packed = word(pixel, 0);
+                *flag = packed & ((1 << OBJECT_SHIFT) - 1);
+                *object = packed >> OBJECT_SHIFT;
+            }
+        });
     frame
 }
 
