@@ -41,13 +41,17 @@ struct Materials {
 const NAN_BITS: u32 = 0x7fc00000u;
 const INFINITY_BITS: u32 = 0x7f800000u;
 
-// Every pass writes the same three targets; write masks decide what actually lands.
+// Every draw of the main render pass writes the same four targets; write masks decide what
+// actually lands.
 struct Targets {
     @location(0) beauty: vec4<f32>,
     // xyz: world position bits; w: distance-from-eye bits.
     @location(1) position: vec4<u32>,
     // Bits 0-7: the flag bits (crate::draw::flag_bits); bits 8-31: object index + 1 (0 = none).
     @location(2) flags: u32,
+    // Bits of the front-most membrane fragment's sky reflection, premultiplied (F * sky, F), kept
+    // until the under-water image is drawn and blended under it (shaders/water_clear.wgsl).
+    @location(3) reflection: vec4<u32>,
 };
 
 // The flags target's word for a fragment of object `material` (its index in the frame's object

@@ -1,6 +1,8 @@
-// Passes b and d: the water membrane. `fs_mark` only feeds the depth/stencil state (pass b, and
-// the depth-only redraw that finds the front-most membrane fragment before pass d); `fs_fresnel`
-// blends the sky reflection over the refracted image by Schlick's F (pass d):
+// Pass b: the water membrane, drawn once, depth-tested against the geometry above water and
+// writing depth, so that the last fragment written in each pixel is the front-most visible one.
+// It marks the stencil, writes its distance (position.w) and keeps its sky reflection by
+// Schlick's F, premultiplied, in the reflection target: (F * sky(reflect(I, N)), F). Pass d
+// (shaders/water_clear.wgsl) blends that over the refracted image:
 // out = F * sky(reflect(I, N)) + (1 - F) * dst, by blend One / OneMinusSrcAlpha with src.a = F.
 
 struct MembraneVertex {
@@ -9,7 +11,7 @@ struct MembraneVertex {
 };
 
 struct MembraneVarying {
-    // Invariant: the depth-only redraw and the Fresnel pass compare depths for equality.
+    // Invariant: the rasterised depth must not depend on what the fragment stage reads.
     @builtin(position) @invariant clip: vec4<f32>,
     @location(0) world_position: vec3<f32>,
     @location(1) normal: vec3<f32>,
@@ -25,17 +27,7 @@ fn vs_membrane(vertex: MembraneVertex) -> MembraneVarying {
 }
 
 @fragment
-fn fs_mark(in: MembraneVarying) -> Targets {
-    // Every colour write is masked off in the pipelines using this entry point.
-    var out: Targets;
-    out.beauty = vec4<f32>(0.0);
-    out.position = vec4<u32>(0u);
-    out.flags = 0u;
-    return out;
-}
-
-@fragment
-fn fs_fresnel(in: MembraneVarying) -> Targets {
+fn fs_membrane(in: MembraneVarying) -> Targets {
     let normal = normalize(in.normal);
     let to_surface = in.world_position - frame.eye.xyz;
     let distance_m = length(to_surface);
@@ -43,9 +35,9 @@ fn fs_fresnel(in: MembraneVarying) -> Targets {
     let reflectance = schlick_reflectance(incident, normal);
     let reflected = reflect(incident, normal);
     var out: Targets;
-    out.beauty = vec4<f32>(reflectance * sky_radiance(reflected), reflectance);
-    // Only w (the distance to the membrane) is written: xyz keep the under-water true position.
+    // Only w (the distance to the membrane) and the reflection are written: beauty and xyz are
+    // the under-water image's, drawn after this.
     out.position = vec4<u32>(0u, 0u, 0u, bitcast<u32>(distance_m));
-    out.flags = 0u;
+    out.reflection = bitcast<vec4<u32>>(vec4<f32>(reflectance * sky_radiance(reflected), reflectance));
     return out;
 }

@@ -23,6 +23,10 @@ pub(crate) struct TargetFormats {
 /// World position and distance as float bits: float32 on every backend.
 pub(crate) const POSITION_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Uint;
 pub(crate) const FLAGS_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Uint;
+/// The membrane's premultiplied sky reflection, kept from pass b to pass d as float32 bits
+/// (float32 targets are not renderable on GL/llvmpipe; the bits blend exactly as the fragment
+/// stage's own float32 output would).
+pub(crate) const REFLECTION_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Uint;
 
 fn instance() -> wgpu::Instance {
     wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env())
@@ -107,19 +111,22 @@ impl GpuContext {
         let mut required_limits = wgpu::Limits::default().using_resolution(adapter.limits());
 
         // Float32 blending is a device feature: without it a float32 target cannot take pass d's
-        // blend. Beauty (16) + position (16) + flags (4) bytes per sample also exceed the default
-        // limit of 32, so float32 beauty needs the adapter to allow more.
-        let float32_bytes_per_sample = 16 + 16 + 4;
+        // blend. Beauty (16 or 8) + position (16) + flags (4) + reflection (16) bytes per sample
+        // exceed the default limit of 32, so the adapter must allow more (Mesa's drivers: 128).
+        let bytes_per_sample = |beauty_bytes: u32| beauty_bytes + 16 + 4 + 16;
+        let allowed_bytes_per_sample = adapter.limits().max_color_attachment_bytes_per_sample;
         let beauty = if available.contains(wgpu::Features::FLOAT32_BLENDABLE)
             && renders_and_blends(&adapter, wgpu::TextureFormat::Rgba32Float)
-            && adapter.limits().max_color_attachment_bytes_per_sample >= float32_bytes_per_sample
+            && allowed_bytes_per_sample >= bytes_per_sample(16)
         {
-            required_limits.max_color_attachment_bytes_per_sample = float32_bytes_per_sample;
             required_features |= wgpu::Features::FLOAT32_BLENDABLE;
             wgpu::TextureFormat::Rgba32Float
         } else {
             wgpu::TextureFormat::Rgba16Float
         };
+        required_limits.max_color_attachment_bytes_per_sample = required_limits
+            .max_color_attachment_bytes_per_sample
+            .max(bytes_per_sample(beauty.block_copy_size(None).unwrap_or(16)));
         let depth_stencil = if available.contains(wgpu::Features::DEPTH32FLOAT_STENCIL8) {
             required_features |= wgpu::Features::DEPTH32FLOAT_STENCIL8;
             wgpu::TextureFormat::Depth32FloatStencil8
