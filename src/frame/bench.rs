@@ -426,3 +426,32 @@ fn process_cpu_secs() -> f64 {
     let secs = |t: libc::timeval| t.tv_sec as f64 + t.tv_usec as f64 * 1e-6;
     secs(usage.ru_utime) + secs(usage.ru_stime)
 }
+
+#[cfg(test)]
+mod tuning {
+    use super::*;
+
+    /// Tuning aid: the refraction stage of `pool.toml` frames alone (no GPU), fastest of 3 passes
+    /// over frames 1-24: `cargo test --release --lib frame::bench::tuning -- --ignored --nocapture`.
+    #[test]
+    #[ignore = "tuning aid"]
+    fn pool_refraction_stage() {
+        let job = RenderJob::prepare(Path::new("scenes/pool.toml")).unwrap();
+        let mut best = vec![f64::INFINITY; 24];
+        for _ in 0..3 {
+            let mut previous = None;
+            for frame in 1..=24 {
+                let refracted = job.refract(frame, 1280, 720, previous.as_ref()).unwrap();
+                best[frame as usize - 1] =
+                    best[frame as usize - 1].min(refracted.stage_secs["refraction"]);
+                previous = Some(refracted.tracking);
+            }
+        }
+        best.sort_by(f64::total_cmp);
+        println!(
+            "REFRACTION stage fastest {:.2} ms median {:.2} ms",
+            best[0] * 1e3,
+            best[12] * 1e3
+        );
+    }
+}

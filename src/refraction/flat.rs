@@ -33,27 +33,46 @@ pub fn flat_sight_point(
         return DVec3::new(point.x, level_m, point.z);
     }
     // L(s) = n_above sqrt(s^2 + a^2) + n_below sqrt((D - s)^2 + b^2) is strictly convex in s, with
-    // dL/ds < 0 at s = 0 and > 0 at s = D: exactly one root of dL/ds in [0, D].
-    let optical_slope = |s: f64| {
-        n_above * s / (s * s + eye_height_m * eye_height_m).sqrt()
-            - n_below * (horizontal_m - s)
-                / ((horizontal_m - s).powi(2) + point_depth_m * point_depth_m).sqrt()
+    // dL/ds < 0 at s = 0 and > 0 at s = D: exactly one root of dL/ds in [0, D]. Newton on dL/ds
+    // (its derivative, the curvature of L, is positive), kept inside the shrinking bracket with
+    // bisection, from where the straight line from the eye to the point crosses the plane; it
+    // stops when a step no longer moves s by more than rounding: machine precision, which is what
+    // an oracle needs, in a handful of steps instead of ~60 halvings.
+    let (a2, b2) = (eye_height_m * eye_height_m, point_depth_m * point_depth_m);
+    let slope_and_curvature = |s: f64| {
+        let (near, far) = (
+            (s * s + a2).sqrt(),
+            ((horizontal_m - s).powi(2) + b2).sqrt(),
+        );
+        (
+            n_above * s / near - n_below * (horizontal_m - s) / far,
+            n_above * a2 / (near * near * near) + n_below * b2 / (far * far * far),
+        )
     };
     let (mut low, mut high) = (0.0_f64, horizontal_m);
-    // Bisect until the interval cannot shrink any more (at most ~1100 halvings for f64; in practice
-    // about 60): machine precision, which is what an oracle needs.
-    loop {
-        let mid = 0.5 * (low + high);
-        if mid <= low || mid >= high {
+    let mut s = horizontal_m * eye_height_m / (eye_height_m + point_depth_m);
+    for _ in 0..200 {
+        let (slope, curvature) = slope_and_curvature(s);
+        if slope == 0.0 {
             break;
         }
-        if optical_slope(mid) < 0.0 {
-            low = mid;
+        if slope < 0.0 {
+            low = s;
         } else {
-            high = mid;
+            high = s;
+        }
+        let newton = s - slope / curvature;
+        let next = if newton > low && newton < high {
+            newton
+        } else {
+            0.5 * (low + high)
+        };
+        let settled = (next - s).abs() <= 4.0 * f64::EPSILON * horizontal_m;
+        s = next;
+        if settled || next <= low || next >= high {
+            break;
         }
     }
-    let s = 0.5 * (low + high);
     let sight_xz = eye_xz + offset_xz * (s / horizontal_m);
     DVec3::new(sight_xz.x, level_m, sight_xz.y)
 }
@@ -98,6 +117,54 @@ mod tests {
 
     const N_AIR: f64 = 1.0;
     const N_WATER: f64 = 1.333;
+
+    /// The safeguarded Newton solve lands where plain bisection of dL/ds to the last bit does,
+    /// for eyes and points from grazing to straight down, shallow to deep.
+    #[test]
+    fn newton_agrees_with_bisection_to_the_last_bits() {
+        let mut state = 0x5EED_F1A7_u64;
+        let mut unit = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for _ in 0..2000 {
+            let eye = DVec3::new(
+                40.0 * unit() - 20.0,
+                0.01 + 10.0 * unit(),
+                40.0 * unit() - 20.0,
+            );
+            let point = DVec3::new(
+                40.0 * unit() - 20.0,
+                -0.001 - 5.0 * unit(),
+                40.0 * unit() - 20.0,
+            );
+            let (a, b) = (eye.y, -point.y);
+            let offset = DVec2::new(point.x - eye.x, point.z - eye.z);
+            let d = offset.length();
+            let slope = |s: f64| {
+                N_AIR * s / (s * s + a * a).sqrt()
+                    - N_WATER * (d - s) / ((d - s).powi(2) + b * b).sqrt()
+            };
+            let (mut low, mut high) = (0.0_f64, d);
+            loop {
+                let mid = 0.5 * (low + high);
+                if mid <= low || mid >= high {
+                    break;
+                }
+                if slope(mid) < 0.0 {
+                    low = mid;
+                } else {
+                    high = mid;
+                }
+            }
+            let bisected = DVec2::new(eye.x, eye.z) + offset * (0.5 * (low + high) / d);
+            let sight = flat_sight_point(eye, point, 0.0, N_AIR, N_WATER);
+            let gap = (DVec2::new(sight.x, sight.z) - bisected).length();
+            assert!(gap <= 1e-13 * (1.0 + d), "{eye} {point}: {gap:e}");
+        }
+    }
 
     /// Snell's law holds at the sight point: n1 sin(theta1) = n2 sin(theta2), to f64 precision.
     #[test]
