@@ -437,7 +437,7 @@ mod tuning {
     #[ignore = "tuning aid"]
     fn pool_refraction_stage() {
         let job = RenderJob::prepare(Path::new("scenes/pool.toml")).unwrap();
-        let mut best = vec![f64::INFINITY; 24];
+        let mut best = [f64::INFINITY; 24];
         for _ in 0..3 {
             let mut previous = None;
             for frame in 1..=24 {
