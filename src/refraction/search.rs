@@ -21,10 +21,10 @@
 //! each block keeps boxes of its `A` and `B` and the `Delta` ingredients. `query_y_range` is cut in
 //! depth slabs; per slab a uniform 2-D grid (CSR, counting sort, slabs built in parallel) lists the
 //! blocks whose footprint over the slab can cover each bin. A query visits one bin, re-tests each
-//! listed block's box at its exact height (in a form without divisions, [`BlockQuery`]), tests each
+//! listed block's box at its exact height (in a form without divisions, `BlockQuery`), tests each
 //! facet's footprint triangle grown by the block's `Delta` times the facet's own `B` spread (f32,
 //! padded for rounding; the footprint lines of a block's facets are stored in structure-of-arrays
-//! chunks of eight, [`LaneChunk`], tested together) and runs the f64 cubic only on the survivors.
+//! chunks of eight, `LaneChunk`, tested together) and runs the f64 cubic only on the survivors.
 //! The crest check afterwards skips the walk under water when a slope bound proves it clear.
 //! Slabs are a few blocks of footprint slide thick: a block listed in a bin but not covering the
 //! point at its height costs one box test, far less than the build pass each extra slab costs. Facets with a ray that does not go
