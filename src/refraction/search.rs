@@ -163,7 +163,7 @@ impl LaneChunk {
     }
 }
 
-/// What a query evaluates of a block: [`BlockBound::box_at`] and [`BlockBound::height_delta`]
+/// What a query evaluates of a block: `BlockBound::box_at` (the tests' reference) and [`BlockBound::height_delta`]
 /// rearranged so they need no division (the one division is done once, in the build, and
 /// padded for its rounding).
 #[derive(Clone, Copy, Debug)]
@@ -206,7 +206,7 @@ impl BlockQuery {
     }
 
     /// Can a cell of the block contain a point at height `y`, horizontal position `v`? The test
-    /// of [`BlockBound::box_at`] (its box, at least as large).
+    /// of `BlockBound::box_at` (its box, at least as large).
     #[inline(always)]
     fn may_contain(&self, v: Vec2, y: f32, delta: f32) -> bool {
         let (p, q) = (self.b_min * y, self.b_max * y);
@@ -1069,7 +1069,7 @@ fn footprint_may_contain(lines: &[Footprint; 3], v: Vec2, y: f32, radius: f32) -
     true
 }
 
-/// [`footprint_may_contain`] for every lane of `chunk` at once (bit i of the result: lane i may
+/// `footprint_may_contain` (the tests' scalar reference) for every lane of `chunk` at once (bit i of the result: lane i may
 /// contain the point), with each lane's radius `growth_radius_from(delta, b_deviation) + slack`.
 /// The same arithmetic lane by lane, written without branches so it vectorises; a NaN lane
 /// fails every comparison and never passes.
