@@ -163,8 +163,8 @@ impl LaneChunk {
     }
 }
 
-/// What a query evaluates of a block: `BlockBound::box_at` (the tests' reference) and [`BlockBound::height_delta`]
-/// rearranged so they need no division (the one division is done once, in the build, and
+/// What a query evaluates of a block: `BlockBound::box_at` (the tests' reference) and
+/// [`BlockBound::height_delta`] rearranged so they need no division (the one division is done once, in the build, and
 /// padded for its rounding).
 #[derive(Clone, Copy, Debug)]
 struct BlockQuery {
@@ -1069,8 +1069,8 @@ fn footprint_may_contain(lines: &[Footprint; 3], v: Vec2, y: f32, radius: f32) -
     true
 }
 
-/// `footprint_may_contain` (the tests' scalar reference) for every lane of `chunk` at once (bit i of the result: lane i may
-/// contain the point), with each lane's radius `growth_radius_from(delta, b_deviation) + slack`.
+/// `footprint_may_contain` (the tests' scalar reference) for every lane of `chunk` at once (bit i
+/// of the result: lane i may contain the point), with each lane's radius `growth_radius_from(delta, b_deviation) + slack`.
 /// The same arithmetic lane by lane, written without branches so it vectorises; a NaN lane
 /// fails every comparison and never passes.
 #[inline(always)]
