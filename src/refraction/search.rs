@@ -164,8 +164,8 @@ impl LaneChunk {
 }
 
 /// What a query evaluates of a block: `BlockBound::box_at` (the tests' reference) and
-/// [`BlockBound::height_delta`] rearranged so they need no division (the one division is done once, in the build, and
-/// padded for its rounding).
+/// [`BlockBound::height_delta`] rearranged so they need no division (the one division is done
+/// once, in the build, and padded for its rounding).
 #[derive(Clone, Copy, Debug)]
 struct BlockQuery {
     a_min: Vec2,
