@@ -112,14 +112,6 @@ struct FacetFootprint {
     b_deviation: f32,
 }
 
-const EMPTY_FOOTPRINT: FacetFootprint = FacetFootprint {
-    lines: [Footprint {
-        a: Vec2::ZERO,
-        b: Vec2::ZERO,
-    }; 3],
-    b_deviation: 0.0,
-};
-
 /// Facets tested together by [`lanes_may_contain`]: the lanes of one chunk.
 const LANES: usize = 8;
 
@@ -139,7 +131,7 @@ struct LaneChunk {
 }
 
 impl LaneChunk {
-    fn new(facets: &[(u32, FacetFootprint)]) -> Self {
+    fn new(facets: impl IntoIterator<Item = (u32, FacetFootprint)>) -> Self {
         let mut chunk = Self {
             ax: [[f32::NAN; LANES]; 3],
             az: [[f32::NAN; LANES]; 3],
@@ -148,7 +140,7 @@ impl LaneChunk {
             b_deviation: [f32::NAN; LANES],
             facet: [u32::MAX; LANES],
         };
-        for (lane, (facet, footprint)) in facets.iter().enumerate().take(LANES) {
+        for (lane, (facet, footprint)) in facets.into_iter().enumerate().take(LANES) {
             for k in 0..3 {
                 let line = footprint.lines[k];
                 chunk.ax[k][lane] = line.a.x;
@@ -157,7 +149,7 @@ impl LaneChunk {
                 chunk.bz[k][lane] = line.b.y;
             }
             chunk.b_deviation[lane] = footprint.b_deviation;
-            chunk.facet[lane] = *facet;
+            chunk.facet[lane] = facet;
         }
         chunk
     }
@@ -331,6 +323,20 @@ struct Slab {
     blocks: Vec<u32>,
 }
 
+impl Slab {
+    /// The blocks listed in the bin holding horizontal position `v` (none outside the grid).
+    #[inline(always)]
+    fn entries_at(&self, v: Vec2) -> &[u32] {
+        let bx = ((v.x - self.origin.x) * self.inverse_bin_m).floor();
+        let bz = ((v.y - self.origin.y) * self.inverse_bin_m).floor();
+        if !(bx >= 0.0 && bz >= 0.0 && (bx as usize) < self.bins_x && (bz as usize) < self.bins_z) {
+            return &[];
+        }
+        let bin = bz as usize * self.bins_x + bx as usize;
+        &self.blocks[self.bin_starts[bin] as usize..self.bin_starts[bin + 1] as usize]
+    }
+}
+
 /// The refraction cells of one frame and the structure that searches them.
 pub struct RefractionField<'a> {
     pub membrane: &'a Membrane,
@@ -343,7 +349,6 @@ pub struct RefractionField<'a> {
     footprints: Vec<Footprint>,
     /// Regular facets per block (CSR, ascending facet index).
     block_starts: Vec<u32>,
-    block_facets: Vec<u32>,
     /// The facets of each block with their footprint lines, in chunks of [`LANES`] (CSR over
     /// `block_chunk_starts`), so the hot loop reads one contiguous run per block instead of
     /// chasing triangle and vertex indices.
@@ -437,7 +442,6 @@ impl<'a> RefractionField<'a> {
             facet_extrapolated,
             footprints,
             block_starts: Vec::new(),
-            block_facets: Vec::new(),
             block_chunk_starts: Vec::new(),
             block_chunks: Vec::new(),
             block_bounds: Vec::new(),
@@ -622,18 +626,16 @@ impl<'a> RefractionField<'a> {
             .par_iter()
             .with_min_len(512)
             .map(|&(start, end)| {
-                let mut lanes = [(u32::MAX, EMPTY_FOOTPRINT); LANES];
-                let run = &facets[start as usize..end as usize];
-                for (lane, &facet) in lanes.iter_mut().zip(run) {
-                    *lane = (facet, footprint_of(facet));
-                }
-                LaneChunk::new(&lanes[..run.len()])
+                LaneChunk::new(
+                    facets[start as usize..end as usize]
+                        .iter()
+                        .map(|&facet| (facet, footprint_of(facet))),
+                )
             })
             .collect();
         self.block_chunk_starts = chunk_starts;
         self.block_queries = bounds.iter().map(BlockQuery::new).collect();
         self.block_starts = starts;
-        self.block_facets = facets;
         self.block_bounds = bounds;
         self.unbounded_facets = unbounded;
     }
@@ -696,13 +698,11 @@ impl<'a> RefractionField<'a> {
             self.images_brute_force(point, out);
             return;
         }
-        let slab_f = (point.y - self.slab_y_low) / self.slab_thickness_m;
-        if !(slab_f >= 0.0 && slab_f <= self.slabs.len() as f32) {
+        let Some(slab) = self.slab_at(point.y) else {
             // Outside the range the structure was built for: test everything rather than miss.
             self.images_brute_force(point, out);
             return;
-        }
-        let slab = &self.slabs[(slab_f as usize).min(self.slabs.len() - 1)];
+        };
         let point64 = point.as_dvec3();
         self.for_each_candidate(slab, point, |facet| {
             self.push_containments(facet, point64, out)
@@ -714,21 +714,20 @@ impl<'a> RefractionField<'a> {
         self.merge_and_check_crests(point64, out);
     }
 
+    /// The depth slab holding height `y`; None outside the range the structure was built for.
+    fn slab_at(&self, y: f32) -> Option<&Slab> {
+        let slab_f = (y - self.slab_y_low) / self.slab_thickness_m;
+        (slab_f >= 0.0 && slab_f <= self.slabs.len() as f32)
+            .then(|| &self.slabs[(slab_f as usize).min(self.slabs.len() - 1)])
+    }
+
     /// Calls `visit` with every regular facet whose footprint test `point` passes in `slab`'s
     /// bin: the blocks listed there whose box at the point's height holds it, then their facets'
     /// grown footprint triangles, [`LANES`] at a time.
     #[inline(always)]
     fn for_each_candidate(&self, slab: &Slab, point: Vec3, mut visit: impl FnMut(u32)) {
         let v = Vec2::new(point.x, point.z);
-        let bx = ((v.x - slab.origin.x) * slab.inverse_bin_m).floor();
-        let bz = ((v.y - slab.origin.y) * slab.inverse_bin_m).floor();
-        if !(bx >= 0.0 && bz >= 0.0 && (bx as usize) < slab.bins_x && (bz as usize) < slab.bins_z) {
-            return;
-        }
-        let bin = bz as usize * slab.bins_x + bx as usize;
-        let entries =
-            &slab.blocks[slab.bin_starts[bin] as usize..slab.bin_starts[bin + 1] as usize];
-        for &block in entries {
+        for &block in slab.entries_at(v) {
             let query = &self.block_queries[block as usize];
             let delta = query.height_delta(point.y);
             if !query.may_contain(v, point.y, delta) {
@@ -764,27 +763,18 @@ impl<'a> RefractionField<'a> {
         if self.slabs.is_empty() {
             return work;
         }
-        let slab_f = (point.y - self.slab_y_low) / self.slab_thickness_m;
-        if !(slab_f >= 0.0 && slab_f <= self.slabs.len() as f32) {
+        let Some(slab) = self.slab_at(point.y) else {
             return work;
-        }
-        let slab = &self.slabs[(slab_f as usize).min(self.slabs.len() - 1)];
+        };
         let v = Vec2::new(point.x, point.z);
-        let bx = ((v.x - slab.origin.x) * slab.inverse_bin_m).floor();
-        let bz = ((v.y - slab.origin.y) * slab.inverse_bin_m).floor();
-        if bx >= 0.0 && bz >= 0.0 && (bx as usize) < slab.bins_x && (bz as usize) < slab.bins_z {
-            let bin = bz as usize * slab.bins_x + bx as usize;
-            let entries =
-                &slab.blocks[slab.bin_starts[bin] as usize..slab.bin_starts[bin + 1] as usize];
-            work[0] = entries.len();
-            for &block in entries {
-                let query = &self.block_queries[block as usize];
-                if query.may_contain(v, point.y, query.height_delta(point.y)) {
-                    work[1] += 1;
-                    work[2] += (self.block_starts[block as usize + 1]
-                        - self.block_starts[block as usize])
-                        as usize;
-                }
+        let entries = slab.entries_at(v);
+        work[0] = entries.len();
+        for &block in entries {
+            let query = &self.block_queries[block as usize];
+            if query.may_contain(v, point.y, query.height_delta(point.y)) {
+                work[1] += 1;
+                work[2] += (self.block_starts[block as usize + 1]
+                    - self.block_starts[block as usize]) as usize;
             }
         }
         self.for_each_candidate(slab, point, |_| work[3] += 1);
@@ -1893,7 +1883,7 @@ mod tests {
                     (i as u32, footprint)
                 })
                 .collect();
-            let chunk = LaneChunk::new(&lanes);
+            let chunk = LaneChunk::new(lanes.iter().copied());
             let y = rng.range(-2.0, 0.0) as f32;
             let v = Vec2::new(rng.range(-1.5, 1.5) as f32, rng.range(-1.5, 1.5) as f32);
             let (delta, slack) = (rng.range(0.0, 0.05) as f32, 1e-6);
@@ -2005,8 +1995,7 @@ mod tuning {
     use std::time::Instant;
 
     fn slab_of<'a>(field: &'a RefractionField, p: Vec3) -> &'a Slab {
-        let slab_f = (p.y - field.slab_y_low) / field.slab_thickness_m;
-        &field.slabs[(slab_f as usize).min(field.slabs.len() - 1)]
+        field.slab_at(p.y).unwrap()
     }
 
     fn gather() -> Vec<(Cell, DVec3)> {
