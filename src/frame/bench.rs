@@ -454,4 +454,43 @@ mod tuning {
             best[12] * 1e3
         );
     }
+
+    /// Tuning aid: the render stage (draw + readback) of `pool.toml` frames 1-24 at 1280x720,
+    /// fastest and median over 2 passes:
+    /// `cargo test --release --lib frame::bench::tuning::pool_render_stage -- --ignored --nocapture`.
+    #[test]
+    #[ignore = "tuning aid"]
+    fn pool_render_stage() {
+        let job = RenderJob::prepare(Path::new("scenes/pool.toml")).unwrap();
+        let mut renderer = Renderer::new().unwrap();
+        job.upload_textures(&mut renderer).unwrap();
+        let mut previous = None;
+        let mut refracted: Vec<_> = (1..=24)
+            .map(|frame| {
+                let r = job.refract(frame, 1280, 720, previous.as_ref()).unwrap();
+                previous = Some(r.tracking.clone());
+                r
+            })
+            .collect();
+        let (mut times, mut cpu) = (Vec::new(), Vec::new());
+        for pass in 0..3 {
+            for r in refracted.iter_mut() {
+                let (start, cpu_start) = (std::time::Instant::now(), process_cpu_secs());
+                job.render_refracted(&mut renderer, r, 1280, 720).unwrap();
+                if pass > 0 {
+                    times.push(start.elapsed().as_secs_f64() * 1e3);
+                    cpu.push((process_cpu_secs() - cpu_start) * 1e3);
+                }
+            }
+        }
+        times.sort_by(f64::total_cmp);
+        cpu.sort_by(f64::total_cmp);
+        println!(
+            "RENDER stage fastest {:.2} ms median {:.2} ms; CPU fastest {:.1} ms median {:.1} ms",
+            times[0],
+            times[times.len() / 2],
+            cpu[0],
+            cpu[cpu.len() / 2]
+        );
+    }
 }
