@@ -11,10 +11,10 @@ use super::flat::{flat_virtual_vertex, virtual_vertex};
 use super::search::test_support::membrane_from;
 use super::search::{Image, RefractionField};
 use super::subdivision::{distance_to_segment, SubdivisionSettings};
-use super::virtual_geometry::tests::{grid, setup, Crest};
+use super::virtual_geometry::tests::{assert_water_line_vertex, grid, setup, Crest};
 use super::virtual_geometry::{
     build_virtual_geometry, build_virtual_geometry_with, exact_vertex_images, query_height_range,
-    ImageSearch, Placement, VirtualGeometry, VirtualGeometryRequest,
+    ImageSearch, Placement, VirtualGeometry, VirtualGeometryRequest, WaterlineSkirt,
 };
 use crate::camera::Camera;
 use crate::draw::flag_bits;
@@ -548,16 +548,29 @@ fn subdivision_keeps_the_water_line_closed() {
         Placement::Exact(SubdivisionSettings::default()),
     );
     assert!(split.counts.triangles.subdivided > 0, "{:?}", split.counts);
+    let field = RefractionField::build(
+        &membrane,
+        &surface,
+        setup(camera.eye),
+        query_height_range(&objects, &membrane),
+    );
+    let skirt = WaterlineSkirt::new(&field);
     let mut uses: HashMap<EdgeKey, u32> = HashMap::new();
     for t in drawn_triangles(&split) {
         for k in 0..3 {
             *uses.entry(edge_key(t[k].0, t[(k + 1) % 3].0)).or_default() += 1;
         }
-        for (true_position, virtual_position) in t {
-            if true_position.y.abs() < 1e-5 {
-                assert_eq!(true_position, virtual_position);
-            }
-        }
+    }
+    // Surface vertices stay their own images, raised by the water-line skirt, with their twins in
+    // the part above water.
+    let water_line: Vec<_> = split
+        .under_vertices
+        .iter()
+        .filter(|v| v.true_position[1].abs() < 1e-5)
+        .collect();
+    assert!(!water_line.is_empty());
+    for v in water_line {
+        assert_water_line_vertex(&skirt, v, &split.above_vertices);
     }
     let (low, high) = extent(&objects[0]);
     let water_line_or_border = |p: [u32; 3]| {
@@ -574,7 +587,8 @@ fn subdivision_keeps_the_water_line_closed() {
             assert_eq!(count, 2);
         }
     }
-    // Each water-line edge of the under-water part is one of the above part's edges.
+    // Each water-line edge of the under-water part is one of the above part's edges, which draws
+    // it lowered by the skirt.
     let above: Vec<Vec3> = split
         .above_indices
         .iter()
@@ -592,8 +606,12 @@ fn subdivision_keeps_the_water_line_closed() {
     for (&(a, b), &count) in &uses {
         let (pa, pb) = (a.map(f32::from_bits), b.map(f32::from_bits));
         if count == 1 && pa[1].abs() < 1e-5 && pb[1].abs() < 1e-5 {
+            let lowered = |p: [f32; 3]| {
+                let p = Vec3::from(p);
+                p - Vec3::Y * skirt.below_m(p)
+            };
             assert!(
-                above_edges.contains_key(&(a, b)),
+                above_edges.contains_key(&edge_key(lowered(pa), lowered(pb))),
                 "water-line edge {pa:?}-{pb:?}"
             );
             water_line_edges += 1;

@@ -792,6 +792,13 @@ impl<'a> RefractionField<'a> {
         )
     }
 
+    /// Twice the largest gap found between the faceted membrane and the exact surface (plus
+    /// rounding): the crest check's height tolerance, and how far apart the water drawn and the
+    /// exact water line may lie.
+    pub fn faceting_tolerance_m(&self) -> f64 {
+        self.crest_tolerance_m
+    }
+
     /// The cell of one facet.
     #[inline]
     pub fn cell(&self, facet: u32) -> Cell {
