@@ -1044,17 +1044,7 @@ impl Renderer {
             return;
         }
         // d. a render pass of its own, so that it can read the reflection target pass b wrote.
-        let load = |view| {
-            Some(wgpu::RenderPassColorAttachment {
-                view,
-                depth_slice: None,
-                resolve_target: None,
-                ops: wgpu::Operations {
-                    load: wgpu::LoadOp::Load,
-                    store: wgpu::StoreOp::Store,
-                },
-            })
-        };
+        let load = |view| colour_attachment(view, wgpu::LoadOp::Load);
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("snell pass d"),
             color_attachments: &[
@@ -1086,17 +1076,7 @@ impl Renderer {
         draw: &FrameDraw,
         targets: &FrameTargets,
     ) -> bool {
-        let colour = |view| {
-            Some(wgpu::RenderPassColorAttachment {
-                view,
-                depth_slice: None,
-                resolve_target: None,
-                ops: wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
-                    store: wgpu::StoreOp::Store,
-                },
-            })
-        };
+        let colour = |view| colour_attachment(view, wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT));
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("snell passes"),
             color_attachments: &[
@@ -1104,15 +1084,7 @@ impl Renderer {
                 colour(&targets.position_view),
                 colour(&targets.flags_view),
                 // Only read inside the stencil, where pass b always writes it: no clear needed.
-                Some(wgpu::RenderPassColorAttachment {
-                    view: &targets.reflection_view,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Load,
-                        store: wgpu::StoreOp::Store,
-                    },
-                }),
+                colour_attachment(&targets.reflection_view, wgpu::LoadOp::Load),
             ],
             depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
                 view: &targets.depth_stencil_view,
@@ -1197,6 +1169,22 @@ impl Renderer {
         }
         true
     }
+}
+
+/// A colour attachment of the frame's render passes, loaded as `load` says and stored.
+fn colour_attachment(
+    view: &wgpu::TextureView,
+    load: wgpu::LoadOp<wgpu::Color>,
+) -> Option<wgpu::RenderPassColorAttachment<'_>> {
+    Some(wgpu::RenderPassColorAttachment {
+        view,
+        depth_slice: None,
+        resolve_target: None,
+        ops: wgpu::Operations {
+            load,
+            store: wgpu::StoreOp::Store,
+        },
+    })
 }
 
 fn read_back(device: &wgpu::Device, targets: &FrameTargets) -> Result<RenderedFrame, GpuError> {

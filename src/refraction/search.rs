@@ -240,32 +240,12 @@ struct BlockBound {
     slack: f32,
     /// How many regular facets the block holds.
     facets: u32,
-    /// The facets of the block's cells that get no footprint bound (rare: rays nearly level).
-    unbounded: UnboundedFacets,
-}
-
-/// A block's unbounded facets: at most [`BLOCK_FACETS`], no allocation.
-#[derive(Clone, Copy, Debug, Default)]
-struct UnboundedFacets {
-    facets: [u32; BLOCK_FACETS],
-    len: u8,
-}
-
-impl UnboundedFacets {
-    fn push(&mut self, facet: u32) {
-        self.facets[self.len as usize] = facet;
-        self.len += 1;
-    }
-    fn iter(&self) -> impl Iterator<Item = &u32> {
-        self.facets[..self.len as usize].iter()
-    }
 }
 
 impl BlockBound {
     fn empty() -> Self {
         Self {
             facets: 0,
-            unbounded: UnboundedFacets::default(),
             a_min: Vec2::splat(f32::INFINITY),
             a_max: Vec2::splat(f32::NEG_INFINITY),
             b_min: Vec2::splat(f32::INFINITY),
@@ -543,6 +523,15 @@ impl<'a> RefractionField<'a> {
                 .iter()
                 .all(|&i| footprints[i as usize].b.x.is_finite())
         };
+        // The facets of block `b`'s cells, ascending.
+        let cells_of = |b: usize| {
+            let (bx, bz) = (b % blocks_x, b / blocks_x);
+            (bz * BLOCK_CELLS..((bz + 1) * BLOCK_CELLS).min(cells_z)).flat_map(move |iz| {
+                (bx * BLOCK_CELLS..((bx + 1) * BLOCK_CELLS).min(cells_x))
+                    .flat_map(move |ix| [2 * (iz * cells_x + ix), 2 * (iz * cells_x + ix) + 1])
+                    .filter(move |&facet| facet < grid_facets)
+            })
+        };
         let footprint_of = |facet: u32| {
             let lines = triangles[facet as usize].map(|i| footprints[i as usize]);
             let b_min = lines[0].b.min(lines[1].b).min(lines[2].b);
@@ -556,28 +545,15 @@ impl<'a> RefractionField<'a> {
             .into_par_iter()
             .with_min_len(256)
             .map(|b| {
-                let (bx, bz) = (b % blocks_x, b / blocks_x);
                 // The block's regular facets, ascending.
                 let mut facets = [0u32; BLOCK_FACETS];
                 let mut count = 0;
-                let mut bound = BlockBound::empty();
-                for iz in bz * BLOCK_CELLS..((bz + 1) * BLOCK_CELLS).min(cells_z) {
-                    for ix in bx * BLOCK_CELLS..((bx + 1) * BLOCK_CELLS).min(cells_x) {
-                        let cell = iz * cells_x + ix;
-                        for facet in [2 * cell, 2 * cell + 1] {
-                            if facet >= grid_facets {
-                                continue;
-                            }
-                            if bounded(facet) {
-                                facets[count] = facet as u32;
-                                count += 1;
-                            } else {
-                                bound.unbounded.push(facet as u32);
-                            }
-                        }
-                    }
+                for facet in cells_of(b).filter(|&facet| bounded(facet)) {
+                    facets[count] = facet as u32;
+                    count += 1;
                 }
                 let facets = &facets[..count];
+                let mut bound = BlockBound::empty();
                 bound.facets = count as u32;
                 for &facet in facets {
                     let tri = triangles[facet as usize];
@@ -615,11 +591,14 @@ impl<'a> RefractionField<'a> {
             .unzip();
         let b_len_global = bounds.iter().fold(0.0_f32, |m, b| m.max(b.b_len_max));
         self.footprint_slack = 64.0 * f32::EPSILON * coordinate_scale * (1.0 + b_len_global);
-        // Ascending: blocks hold ascending facets, but a block's facets interleave with the next
-        // block's (rows of cells), so the rare unbounded ones are sorted.
+        // The rare unbounded facets, from the blocks that hold fewer facets than their cells;
+        // sorted, since a block's facets interleave with the next block's (rows of cells).
         let mut unbounded: Vec<u32> = bounds
             .iter()
-            .flat_map(|bound| bound.unbounded.iter().copied())
+            .enumerate()
+            .filter(|(b, bound)| bound.facets as usize != cells_of(*b).count())
+            .flat_map(|(b, _)| cells_of(b).filter(|&facet| !bounded(facet)))
+            .map(|facet| facet as u32)
             .chain(grid_facets as u32..triangles.len() as u32)
             .collect();
         unbounded.sort_unstable();
@@ -790,13 +769,6 @@ impl<'a> RefractionField<'a> {
             self.surface_y_min - self.crest_tolerance_m,
             self.surface_y_max + self.crest_tolerance_m,
         )
-    }
-
-    /// Twice the largest gap found between the faceted membrane and the exact surface (plus
-    /// rounding): the crest check's height tolerance, and how far apart the water drawn and the
-    /// exact water line may lie.
-    pub fn faceting_tolerance_m(&self) -> f64 {
-        self.crest_tolerance_m
     }
 
     /// The cell of one facet.
@@ -1565,6 +1537,12 @@ mod tests {
         fn range(&mut self, lo: f64, hi: f64) -> f64 {
             lo + (hi - lo) * self.unit()
         }
+        /// A point with x and z in `[-half_m, half_m]` and y in `y_m` (drawn x, y, z).
+        fn point(&mut self, half_m: f64, y_m: (f64, f64)) -> Vec3 {
+            let x = self.range(-half_m, half_m);
+            let y = self.range(y_m.0, y_m.1);
+            Vec3::new(x as f32, y as f32, self.range(-half_m, half_m) as f32)
+        }
     }
 
     fn random_waves(rng: &mut Rng, count: usize, steepness: f64) -> Waves {
@@ -1639,11 +1617,7 @@ mod tests {
             );
             let field = RefractionField::build(&membrane, &surface, setup(eye), (-2.5, 0.2));
             for _ in 0..300 {
-                let p = Vec3::new(
-                    rng.range(-3.0, 3.0) as f32,
-                    rng.range(-2.5, -0.05) as f32,
-                    rng.range(-3.0, 3.0) as f32,
-                );
+                let p = rng.point(3.0, (-2.5, -0.05));
                 let images = assert_same(&field, p, &format!("case {case}"));
                 total_images += images.len();
                 if images.len() > 1 {
@@ -1955,6 +1929,45 @@ mod tests {
         assert!((a[0].sight_point - b[0].sight_point).length() < 2e-3);
     }
 
+    /// Facets whose rays descend too gently for a footprint bound are listed apart and tested
+    /// for every point: exactly those facets, and the answers stay the brute force's. Index-
+    /// matched water (the rays go straight on) seen from an eye just above it makes the far
+    /// facets' rays nearly level.
+    #[test]
+    fn facets_without_a_footprint_bound_are_tested_for_every_point() {
+        let mut rng = Rng(0x5EED_0002);
+        let surface = random_waves(&mut rng, 3, 0.1);
+        let membrane = membrane_from(&surface, square_grid(2.0, 32));
+        let eye = Vec3::new(-2.5, 0.15, 0.3);
+        let setup = RefractionSetup {
+            n_below: 1.0,
+            ..setup(eye)
+        };
+        let field = RefractionField::build(&membrane, &surface, setup, (-2.0, 0.0));
+        let expected: Vec<u32> = (0..membrane.triangles.len() as u32)
+            .filter(|&facet| {
+                membrane.triangles[facet as usize]
+                    .iter()
+                    .any(|&i| field.rays[i as usize].direction.y > -MIN_DESCENT)
+            })
+            .collect();
+        assert!(!expected.is_empty() && expected.len() < membrane.triangles.len() / 2);
+        assert_eq!(field.unbounded_facets, expected);
+        let (mut images, mut through_unbounded) = (0, 0);
+        for _ in 0..400 {
+            let p = rng.point(2.0, (-0.3, -0.01));
+            for image in assert_same(&field, p, "nearly level rays") {
+                images += 1;
+                through_unbounded += usize::from(expected.binary_search(&image.facet).is_ok());
+            }
+        }
+        // Both kinds of facet answer: the test reaches the list as well as the blocks.
+        assert!(
+            images > 100 && through_unbounded > 0 && through_unbounded < images,
+            "{images} images, {through_unbounded} through unbounded facets"
+        );
+    }
+
     #[test]
     fn extrapolated_flag_marks_facets_with_back_facing_rays() {
         // A steep wave seen from a low eye has back-facing vertices.
@@ -1974,11 +1987,7 @@ mod tests {
         assert!(field.facet_extrapolated.iter().any(|&e| e));
         let mut rng = Rng(3);
         for _ in 0..500 {
-            let p = Vec3::new(
-                rng.range(-2.0, 2.0) as f32,
-                rng.range(-2.0, -0.1) as f32,
-                rng.range(-2.0, 2.0) as f32,
-            );
+            let p = rng.point(2.0, (-2.0, -0.1));
             for image in assert_same(&field, p, "grazing") {
                 assert_eq!(
                     image.extrapolated,
@@ -2001,12 +2010,37 @@ mod tuning {
         field.slab_at(p.y).unwrap()
     }
 
+    /// The benchmark's pool scenario (`refraction::bench`).
+    struct Pool {
+        surface: crate::water::WaterSurface,
+        membrane: Membrane,
+        points: Vec<Vec3>,
+        setup: RefractionSetup,
+    }
+
+    impl Pool {
+        fn new() -> Self {
+            let (surface, membrane, points, setup) =
+                crate::refraction::bench::pool_scenario_for_tests();
+            Self {
+                surface,
+                membrane,
+                points,
+                setup,
+            }
+        }
+
+        /// The field a frame builds, for the benchmark's query height range.
+        fn field(&self) -> RefractionField<'_> {
+            RefractionField::build(&self.membrane, &self.surface, self.setup, (-2.0, 0.0))
+        }
+    }
+
     fn gather() -> Vec<(Cell, DVec3)> {
-        let (surface, membrane, points, setup) =
-            crate::refraction::bench::pool_scenario_for_tests();
-        let field = RefractionField::build(&membrane, &surface, setup, (-2.0, 0.0));
+        let pool = Pool::new();
+        let (field, points) = (pool.field(), &pool.points);
         let mut cells = Vec::new();
-        for p in &points {
+        for p in points {
             field.for_each_candidate(slab_of(&field, *p), *p, |f| {
                 cells.push((field.cell(f), p.as_dvec3()))
             });
@@ -2044,12 +2078,11 @@ mod tuning {
     #[test]
     #[ignore]
     fn crest_only() {
-        let (surface, membrane, points, setup) =
-            crate::refraction::bench::pool_scenario_for_tests();
-        let field = RefractionField::build(&membrane, &surface, setup, (-2.0, 0.0));
+        let pool = Pool::new();
+        let (field, points) = (pool.field(), &pool.points);
         let mut pairs = Vec::new();
         let mut out = Vec::new();
-        for p in &points {
+        for p in points {
             field.images(*p, &mut out);
             for im in &out {
                 pairs.push((im.sight_point.as_dvec3(), p.as_dvec3()));
@@ -2093,15 +2126,15 @@ mod tuning {
     #[ignore]
     fn pool_frame() {
         use rayon::prelude::*;
-        let (surface, membrane, points, setup) =
-            crate::refraction::bench::pool_scenario_for_tests();
+        let pool = Pool::new();
         let mut frames = Vec::new();
         let mut builds = Vec::new();
         for _ in 0..15 {
             let s = Instant::now();
-            let field = RefractionField::build(&membrane, &surface, setup, (-2.0, 0.0));
+            let field = pool.field();
             builds.push(s.elapsed().as_secs_f64());
-            let n: usize = points
+            let n: usize = pool
+                .points
                 .par_iter()
                 .with_min_len(256)
                 .map_init(Vec::new, |out, &p| {
@@ -2118,19 +2151,18 @@ mod tuning {
             "POOL frame fastest {:.2} ms median {:.2} ms ({:.2} M/s median); build fastest {:.2} median {:.2} ms; size {:?}",
             frames[0] * 1e3,
             frames[7] * 1e3,
-            points.len() as f64 / frames[7] / 1e6,
+            pool.points.len() as f64 / frames[7] / 1e6,
             builds[0] * 1e3,
             builds[7] * 1e3,
-            RefractionField::build(&membrane, &surface, setup, (-2.0, 0.0)).structure_size()
+            pool.field().structure_size()
         );
     }
 
     #[test]
     #[ignore]
     fn lanes_only() {
-        let (surface, membrane, points, setup) =
-            crate::refraction::bench::pool_scenario_for_tests();
-        let field = RefractionField::build(&membrane, &surface, setup, (-2.0, 0.0));
+        let pool = Pool::new();
+        let (field, points) = (pool.field(), &pool.points);
         let chunks = &field.block_chunks.as_flattened()[..4096];
         let mut best = f64::INFINITY;
         let mut n = 0;
@@ -2153,11 +2185,10 @@ mod tuning {
     #[test]
     #[ignore]
     fn build_only() {
-        let (surface, membrane, _points, setup) =
-            crate::refraction::bench::pool_scenario_for_tests();
+        let pool = Pool::new();
         let s = Instant::now();
         for _ in 0..100 {
-            let f = RefractionField::build(&membrane, &surface, setup, (-2.0, 0.0));
+            let f = pool.field();
             drop(f);
         }
         println!("build {:.2} ms", s.elapsed().as_secs_f64() * 10.0);
@@ -2166,9 +2197,8 @@ mod tuning {
     #[test]
     #[ignore]
     fn breakdown() {
-        let (surface, membrane, points, setup) =
-            crate::refraction::bench::pool_scenario_for_tests();
-        let field = RefractionField::build(&membrane, &surface, setup, (-2.0, 0.0));
+        let pool = Pool::new();
+        let (field, points) = (pool.field(), &pool.points);
         let pts: Vec<Vec3> = points.clone();
         let time = |name: &str, f: &dyn Fn(Vec3) -> usize| {
             let mut best = f64::INFINITY;
@@ -2219,7 +2249,7 @@ mod tuning {
         let mut best = f64::INFINITY;
         for _ in 0..10 {
             let s = Instant::now();
-            let f = RefractionField::build(&membrane, &surface, setup, (-2.0, 0.0));
+            let f = pool.field();
             best = best.min(s.elapsed().as_secs_f64());
             drop(f);
         }

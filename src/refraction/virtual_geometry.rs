@@ -411,7 +411,8 @@ pub(crate) struct WaterlineSkirt<'a> {
 }
 
 /// The skirt's margin per membrane spacing: 0.6 mm at the default 6.25 cm, a twentieth of a pixel
-/// at the default camera's distance (half of it closed every gap of `pool.toml` at 1280x720).
+/// at the default camera's distance (a skirt of half this margin alone, without reaching to the
+/// membrane first, already closed every gap of `pool.toml` at 1280x720).
 pub const WATERLINE_SKIRT_MARGIN_PER_SPACING: f64 = 0.01;
 
 impl<'a> WaterlineSkirt<'a> {
