@@ -169,17 +169,24 @@ enum Command {
     /// convergence. Example: printf 'x,y,z\n0.2,-0.6,0.1\n' > p.csv;
     /// snell locate scenes/tiny.toml --frame 1 --points p.csv
     Locate(snell::tools::cli::LocateArgs),
-    /// Measure how far apart two EXR frames of the same shot are: screen-space position error,
-    /// beauty FLIP and object mismatch.
+    /// Measure how far apart two EXR frames of the same shot are: screen-space position error
+    /// both ways, beauty FLIP and object mismatch.
     ///
-    /// Position error: for each pixel of A that sees an object, the distance in pixels (sub-pixel)
-    /// to the place in B that sees the same world point — B's pixel with the nearest true position
-    /// P on the same object within --window, refined between pixels — as mean, 99th percentile
-    /// and max over the pixels where both see the same object, and again outside A's flagged
-    /// pixels. Then the mean FLIP of the tone-mapped beauty and the fraction of pixels whose
-    /// seen object differs. Typical use: A = a --method raytrace render, B = the same frame by a
-    /// faster method. Needs frames with the object layer. Exit 2 for a missing or unreadable file
-    /// or frames of different sizes.
+    /// Position error, A -> B: for each pixel of A that sees an object B sees at that pixel too,
+    /// the distance in pixels (sub-pixel) to the nearest place in B that sees the same world
+    /// point: B's map pixel -> true position P, interpolated over the pixel grid, is searched
+    /// over the whole frame (no window), so errors of any size count; where B does not see the
+    /// point at all, the place of the nearest point it sees counts and the pixel is "unseen".
+    /// B -> A the same the other way; "both" pools them. With A the reference, A -> B makes an
+    /// image the method did not draw cost its distance, and B -> A an image drawn where the truth
+    /// has none. Each as mean, 99th percentile, max and share over 1 px, over every pixel where
+    /// both see the same object, outside flagged pixels (--flags-from; the report says whose), and
+    /// outside the fold band: pixels within 1.5 px of a fold of A's map (a caustic line in screen
+    /// space, where two neighbouring triangles of the map face opposite ways), where one sample
+    /// per pixel cannot place the images. Then the mean FLIP of the tone-mapped beauty and the
+    /// share of pixels whose seen object differs. Typical use: A = a --method raytrace render,
+    /// B = the same frame by a faster method. Needs frames with the object layer. Exit 2 for a
+    /// missing or unreadable file or frames of different sizes.
     Compare(snell::tools::cli::CompareArgs),
     /// Write a frame's world-space geometry (water membrane, every object, posed characters) as
     /// OBJ (+ MTL + PNG textures) or PLY, and its camera as camera.json.

@@ -309,14 +309,24 @@ fn compare_of_a_frame_with_itself_is_zero_and_bad_input_is_exit_2() {
     let output = compare(&frame1, &frame1, &["--json"]);
     expect_exit(&output, 0, &[]);
     let json: serde_json::Value = serde_json::from_str(&stdout_of(&output)).unwrap();
-    for key in ["position_error", "position_error_outside_flagged"] {
-        for figure in ["mean_px", "p99_px", "max_px"] {
-            assert_eq!(json[key][figure], 0.0, "{key}.{figure}: {json}");
+    for direction in ["a_to_b", "b_to_a", "both"] {
+        for subset in ["all", "outside_flagged", "outside_fold_band"] {
+            for figure in ["mean_px", "p99_px", "max_px", "over_1px_fraction"] {
+                assert_eq!(
+                    json[direction][subset][figure], 0.0,
+                    "{direction}.{subset}.{figure}: {json}"
+                );
+            }
+            assert_eq!(json[direction][subset]["unseen"], 0, "{json}");
         }
     }
     assert!(
-        json["position_error"]["counted"].as_u64().unwrap() > 1000,
+        json["a_to_b"]["all"]["counted"].as_u64().unwrap() > 1000,
         "{json}"
+    );
+    assert_eq!(
+        json["both"]["all"]["counted"].as_u64().unwrap(),
+        2 * json["a_to_b"]["all"]["counted"].as_u64().unwrap()
     );
     assert_eq!(json["flip_mean"], 0.0);
     assert_eq!(json["object_mismatch_fraction"], 0.0);
@@ -328,7 +338,11 @@ fn compare_of_a_frame_with_itself_is_zero_and_bad_input_is_exit_2() {
     let text = stdout_of(&output);
     for needle in [
         "where both see the same object",
+        "A -> B all",
+        "B -> A all",
         "outside flagged pixels",
+        "outside the fold band",
+        "fold band",
         "beauty FLIP mean",
         "pixels whose seen object differs",
     ] {
@@ -336,7 +350,7 @@ fn compare_of_a_frame_with_itself_is_zero_and_bad_input_is_exit_2() {
     }
     let output = compare(&frame1, &frame2, &["--json"]);
     let json: serde_json::Value = serde_json::from_str(&stdout_of(&output)).unwrap();
-    let mean = json["position_error"]["mean_px"].as_f64().unwrap();
+    let mean = json["a_to_b"]["all"]["mean_px"].as_f64().unwrap();
     assert!(mean > 0.0 && mean < 8.0, "{json}");
     assert!(json["flip_mean"].as_f64().unwrap() > 0.0);
 
@@ -637,7 +651,7 @@ fn compare_measures_a_known_camera_turn_on_real_renders() {
     let true_mean = truth.iter().sum::<f64>() / truth.len() as f64;
     let true_p99 = truth[(truth.len() as f64 * 0.99).ceil() as usize - 1];
 
-    let measured = position_error(&a, &b, 8, false).unwrap();
+    let measured = position_error(&a, &b).unwrap();
     assert_eq!(measured.counted, truth.len());
     eprintln!(
         "camera turn: true mean {true_mean:.4} px p99 {true_p99:.4} px; measured mean {:.4} px p99 {:.4} px max {:.4} px",

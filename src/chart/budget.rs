@@ -224,8 +224,11 @@ pub fn measure_choice(
                 configuration.describe()
             ));
             let rendered = measurer.render_once(configuration, frame)?;
-            let error =
-                super::position_error_against(&rendered, reference, frame, measurer.job)?.all;
+            let comparison =
+                super::position_error_against(&rendered, reference, frame, measurer.job)?;
+            // Both ways, outside the reference's fold band, where one sample per pixel cannot
+            // place the images (`snell compare`'s figures).
+            let error = comparison.both.outside_fold_band;
             bar.inc(1);
             let worst_so_far = worst.get_or_insert(CandidateError {
                 method: configuration.method.name().to_string(),
@@ -238,7 +241,7 @@ pub fn measure_choice(
             worst_so_far.mean_px = worst_so_far.mean_px.max(error.mean_px);
             worst_so_far.object_mismatch_fraction = worst_so_far
                 .object_mismatch_fraction
-                .max(error.object_mismatch_fraction);
+                .max(comparison.object_mismatch_fraction);
             if worst_so_far.p99_px > max_error_px {
                 break; // fails on this frame: the others cannot save it
             }

@@ -20,17 +20,14 @@ use std::time::Instant;
 use crate::draw::RenderedFrame;
 use crate::frame::{progress_bar, Method, RenderJob, SnellError};
 use crate::gpu::Renderer;
-use crate::output::position_error::{compare_positions, PositionComparison};
+use crate::output::position_error::{compare_positions, CompareOptions, PositionComparison, Side};
+use crate::refraction::flags::FlagCounts;
 
 /// Membrane resolutions the linear method is charted at (cells along x and along z).
 pub const LINEAR_RESOLUTIONS: [u32; 5] = [32, 64, 128, 256, 512];
 
 /// The method everything is measured against: the ray tracer on the exact (analytic) surface.
 pub const REFERENCE_METHOD: Method = Method::Raytrace;
-
-/// Half-size of the window the position error searches, pixels ([`compare_positions`]): the
-/// coarsest membranes (32x32 cells) move images by a few pixels at 1280x720; 8 px leaves room.
-pub const ERROR_WINDOW_PX: u32 = crate::output::position_error::DEFAULT_WINDOW_PX;
 
 /// Repetitions of a configuration: at least one; more while the configuration's renders so far
 /// took under [`REPEAT_BUDGET_SECS`], up to [`MAX_REPETITIONS`]. The median is reported, so the fast
@@ -181,6 +178,22 @@ impl<'a> Measurer<'a> {
         Ok(self.render_repeated(configuration, frame, 1)?.0)
     }
 
+    /// One untimed render of `frame` with `configuration`, with the frame's flag counts (popping
+    /// judged against frame - 1, recomputed, as a frame rendered alone is).
+    pub fn render_counted(
+        &mut self,
+        configuration: Configuration,
+        frame: u32,
+    ) -> Result<(RenderedFrame, FlagCounts), SnellError> {
+        let (rendered, timings) = self.render_repeated(configuration, frame, 1)?;
+        Ok((rendered, timings.counts))
+    }
+
+    /// The job rendered.
+    pub fn job(&self) -> &RenderJob {
+        self.job
+    }
+
     /// One untimed GPU render of `frame`: the first render of a renderer compiles pipelines and
     /// allocates targets, which is not a frame's cost.
     pub fn warm_up(&mut self, frame: u32) -> Result<(), SnellError> {
@@ -212,6 +225,7 @@ impl<'a> Measurer<'a> {
             timings
                 .render_secs
                 .push(refracted.stage_secs.get("render").copied().unwrap_or(0.0));
+            timings.counts = refracted.counts;
             let spent: f64 = timings.total_secs.iter().sum();
             if timings.total_secs.len() >= max_repetitions || spent >= REPEAT_BUDGET_SECS {
                 return Ok((rendered, timings));
@@ -245,6 +259,8 @@ impl Drop for Measurer<'_> {
 pub struct Timings {
     pub total_secs: Vec<f64>,
     pub render_secs: Vec<f64>,
+    /// The last render's flag counts.
+    pub counts: FlagCounts,
 }
 
 impl Timings {
@@ -263,14 +279,20 @@ impl Timings {
     }
 }
 
-/// The position error of `test` against `reference` (flags taken from `test`).
-fn position_error_against(
+/// The position error of `test` against `reference`, both ways (A the reference, B the test,
+/// flags taken from the test, the fold band from the reference).
+pub(crate) fn position_error_against(
     test: &RenderedFrame,
     reference: &RenderedFrame,
     frame: u32,
     job: &RenderJob,
 ) -> Result<PositionComparison, SnellError> {
-    compare_positions(test, reference, ERROR_WINDOW_PX).map_err(|error| SnellError::Frame {
+    let eye = job.camera_at(frame).eye;
+    let options = CompareOptions {
+        flags_from: Side::B,
+        eyes: Some((eye, eye)),
+    };
+    compare_positions(reference, test, &options).map_err(|error| SnellError::Frame {
         scene: job.scene.path.clone(),
         frame,
         problem: format!("cannot measure the position error against the reference: {error}"),
@@ -313,6 +335,7 @@ pub const CSV_HEADER: &str = "method,resolution,secs_per_frame,mean_px,p99_px";
 /// The detailed CSV's header: every figure of every configuration.
 pub const DETAIL_CSV_HEADER: &str = "method,resolution,secs_per_frame,repetitions,\
 mean_px,p99_px,max_px,counted,mean_px_unflagged,p99_px_unflagged,max_px_unflagged,counted_unflagged,\
+mean_px_outside_fold_band,p99_px_outside_fold_band,max_px_outside_fold_band,counted_outside_fold_band,\
 object_mismatch_fraction,render_secs";
 
 pub const CSV_FILE_NAME: &str = "speed_accuracy.csv";
@@ -396,8 +419,8 @@ impl ChartOutcome {
                 m.configuration.method.name(),
                 m.configuration.resolution_label(),
                 number(m.secs_per_frame),
-                number(m.error.all.mean_px),
-                number(m.error.all.p99_px),
+                number(m.error.both.all.mean_px),
+                number(m.error.both.all.p99_px),
             ));
         }
         text
@@ -408,9 +431,13 @@ impl ChartOutcome {
     pub fn detail_csv_text(&self) -> String {
         let mut text = format!("{DETAIL_CSV_HEADER}\n");
         for m in &self.measurements {
-            let (all, unflagged) = (&m.error.all, &m.error.outside_flagged);
+            let (all, unflagged, unfolded) = (
+                &m.error.both.all,
+                &m.error.both.outside_flagged,
+                &m.error.both.outside_fold_band,
+            );
             text.push_str(&format!(
-                "{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n",
+                "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n",
                 m.configuration.method.name(),
                 m.configuration.resolution_label(),
                 number(m.secs_per_frame),
@@ -423,7 +450,11 @@ impl ChartOutcome {
                 number(unflagged.p99_px),
                 number(unflagged.max_px),
                 unflagged.counted,
-                number(all.object_mismatch_fraction),
+                number(unfolded.mean_px),
+                number(unfolded.p99_px),
+                number(unfolded.max_px),
+                unfolded.counted,
+                number(m.error.object_mismatch_fraction),
                 number(m.render_secs),
             ));
         }
@@ -466,7 +497,7 @@ impl ChartOutcome {
             "mismatch"
         ));
         for m in &self.measurements {
-            let (all, unflagged) = (&m.error.all, &m.error.outside_flagged);
+            let (all, unflagged) = (&m.error.both.all, &m.error.both.outside_flagged);
             text.push_str(&format!(
                 "  {:<9} {:<14} {:>10.4} {:>9.4} {:>9.4} {:>9.3} {:>7.4}/{:<8.4} {:>8.3}%\n",
                 m.configuration.method.name(),
@@ -477,13 +508,13 @@ impl ChartOutcome {
                 all.max_px,
                 unflagged.mean_px,
                 unflagged.p99_px,
-                100.0 * all.object_mismatch_fraction
+                100.0 * m.error.object_mismatch_fraction
             ));
         }
         let reference = self.reference();
         match self.exact_at(scene_resolution) {
             Some(exact) => {
-                let unflagged = &exact.error.outside_flagged;
+                let unflagged = &exact.error.both.outside_flagged;
                 let ratio = reference.secs_per_frame / exact.secs_per_frame;
                 let verdict = |met: bool| if met { "met" } else { "NOT met" };
                 text.push_str(&format!(
@@ -544,7 +575,7 @@ impl ChartOutcome {
                     series: m.configuration.method.name().to_string(),
                     label: m.configuration.resolution_label(),
                     secs_per_frame: m.secs_per_frame,
-                    mean_px: m.error.all.mean_px,
+                    mean_px: m.error.both.all.mean_px,
                 })
                 .collect(),
             reference: Some((
@@ -592,7 +623,7 @@ pub fn write_chart(outcome: &ChartOutcome) -> Result<(), SnellError> {
     Ok(())
 }
 
-fn write_text(path: &Path, text: &str) -> Result<(), SnellError> {
+pub(crate) fn write_text(path: &Path, text: &str) -> Result<(), SnellError> {
     use std::io::Write;
     crate::output::write_atomically(path, |file| {
         file.write_all(text.as_bytes())

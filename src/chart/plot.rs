@@ -11,7 +11,7 @@ use plotters::prelude::*;
 
 /// DejaVu Sans (Bitstream Vera licence; see src/chart/font/CREDITS.md).
 static FONT: &[u8] = include_bytes!("font/DejaVuSans.ttf");
-const FONT_FAMILY: &str = "sans-serif";
+pub(crate) const FONT_FAMILY: &str = "sans-serif";
 
 /// One configuration on the chart.
 #[derive(Clone, Debug, PartialEq)]
@@ -43,7 +43,7 @@ pub const PNG_SIZE: (u32, u32) = (1200, 800);
 /// Size of the SVG chart, in its user units.
 pub const SVG_SIZE: (u32, u32) = (1200, 800);
 
-fn register_font() {
+pub(crate) fn register_font() {
     static REGISTER: Once = Once::new();
     REGISTER.call_once(|| {
         // The bytes are a valid TrueType file compiled into the binary: failure would be a build defect.
@@ -83,7 +83,7 @@ pub fn chart_image(input: &ChartInput) -> Result<RgbaImage, String> {
 }
 
 /// Colours of the series, in order of first appearance (colour-blind safe: Okabe & Ito).
-const SERIES_COLOURS: [RGBColor; 5] = [
+pub(crate) const SERIES_COLOURS: [RGBColor; 5] = [
     RGBColor(0, 114, 178),
     RGBColor(213, 94, 0),
     RGBColor(204, 121, 167),

@@ -7,7 +7,7 @@ use std::path::PathBuf;
 
 use super::{compare, export, locate, ToolError};
 use crate::frame::{parse_size, Method, RenderJob, SnellError};
-use crate::output::position_error::DEFAULT_WINDOW_PX;
+use crate::output::position_error::Side;
 
 /// `snell locate SCENE --frame N --points FILE.csv`.
 #[derive(clap::Args, Clone, Debug)]
@@ -30,21 +30,32 @@ pub struct LocateArgs {
 /// `snell compare A.exr B.exr`.
 #[derive(clap::Args, Clone, Debug)]
 pub struct CompareArgs {
-    /// The reference frame (e.g. a `--method raytrace` render).
+    /// The reference frame (e.g. a `--method raytrace` render): the fold band comes from its map.
     pub a: PathBuf,
-    /// The frame measured against it, of the same shot and size.
+    /// The frame measured against it, of the same shot and size (e.g. a `--method exact` render).
     pub b: PathBuf,
-    /// Half-size in pixels of the square window searched in B around each pixel of A for the
-    /// pixel that sees the same world point (nearest P on the same object); the sub-pixel
-    /// refinement may then walk up to 4 px further. Larger errors are not found: the nearest P
-    /// within reach is what counts, so raise the window when the frames differ a lot.
-    #[arg(long, value_name = "N", default_value_t = DEFAULT_WINDOW_PX)]
-    pub window: u32,
-    /// Print the figures as one JSON object instead of a table (keys position_error and
-    /// position_error_outside_flagged, each with mean_px, p99_px, max_px and counted; flip_mean;
-    /// object_mismatch_fraction and object_mismatch_pixels).
+    /// Which file's flags define "flagged" (A or B). By default the one a rasterising method
+    /// made, read from the headers (the ray tracers flag nothing), and B when that does not
+    /// decide. The report says which it used and why.
+    #[arg(long, value_name = "A|B", value_parser = parse_side)]
+    pub flags_from: Option<Side>,
+    /// Print the figures as one JSON object instead of a table: a_to_b, b_to_a and both, each
+    /// with all, outside_flagged and outside_fold_band, each with mean_px, p99_px, max_px,
+    /// over_1px_fraction, counted and unseen; flags_from, flags_reason, flagged_pixels,
+    /// flagged_water_fraction; fold_edges, fold_band_pixels, fold_band_water_fraction,
+    /// water_pixels; flip_mean; object_mismatch_fraction, object_mismatch_pixels, pixels.
     #[arg(long)]
     pub json: bool,
+}
+
+fn parse_side(text: &str) -> Result<Side, String> {
+    match text.trim() {
+        "A" | "a" => Ok(Side::A),
+        "B" | "b" => Ok(Side::B),
+        other => Err(format!(
+            "{other:?}: choose A (the first file) or B (the second)"
+        )),
+    }
 }
 
 /// `snell export SCENE --frame N --out DIR`.
@@ -113,7 +124,7 @@ pub fn run_compare(args: &CompareArgs) -> u8 {
 }
 
 fn compare_command(args: &CompareArgs) -> Result<(), ToolError> {
-    let comparison = compare::compare_files(&args.a, &args.b, args.window)?;
+    let comparison = compare::compare_files(&args.a, &args.b, args.flags_from)?;
     if args.json {
         println!(
             "{}",
