@@ -24,6 +24,8 @@
 //! [`tools`] checks snell from outside: every image of given points (`snell locate`), position
 //! error between frames (`snell compare`), a frame's geometry and camera for other tools (`snell export`).
 //!
+//! [`seeded`] is the one seeded random number generator of the tests and benchmarks.
+//!
 //! [`frame`] ties the stages together: one `render_frame` entry point used identically by the CLI
 //! and by the tests. [`interrupt`] turns Ctrl-C into a stop after the frame in flight.
 
@@ -43,6 +45,7 @@ pub mod preview;
 pub mod reference;
 pub mod refraction;
 pub mod scene;
+pub mod seeded;
 pub mod sim;
 pub mod timeline;
 pub mod tools;

@@ -442,15 +442,11 @@ fn partition(items: &mut [Item], left: impl Fn(&Item) -> bool) -> usize {
 mod tests {
     use super::*;
 
-    /// A small deterministic generator (SplitMix64) so failures reproduce.
-    struct Random(u64);
+    /// The seeded generator, with the points these tests draw.
+    struct Random(crate::seeded::SplitMix64);
     impl Random {
         fn next(&mut self) -> f32 {
-            self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-            let mut z = self.0;
-            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-            ((z ^ (z >> 31)) >> 40) as f32 / (1u64 << 24) as f32
+            self.0.unit_f32()
         }
         fn point(&mut self, scale: f32) -> Vec3 {
             Vec3::new(self.next(), self.next(), self.next()) * (2.0 * scale) - scale
@@ -473,7 +469,7 @@ mod tests {
 
     #[test]
     fn hits_equal_brute_force_on_random_triangles() {
-        let mut random = Random(7);
+        let mut random = Random(crate::seeded::SplitMix64::new(7));
         for count in [1usize, 2, 3, 9, 100, 5_000] {
             let triangles = random_triangles(&mut random, count);
             let bvh = Bvh::build(&triangles);

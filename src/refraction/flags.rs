@@ -163,18 +163,19 @@ pub fn vertex_pops(
 mod tests {
     use super::*;
 
-    /// Two rows of a 3x2-cell grid's triangles, as the membrane lays them out.
+    /// The triangles of a 3x2-cell membrane grid, in the membrane's layout.
     fn grid_triangles() -> Vec<[u32; 3]> {
-        let (nx, nz) = (3u32, 2u32);
-        let mut triangles = Vec::new();
-        for iz in 0..nz {
-            for ix in 0..nx {
-                let a = iz * (nx + 1) + ix;
-                triangles.push([a, a + nx + 1, a + 1]);
-                triangles.push([a + 1, a + nx + 1, a + nx + 2]);
-            }
-        }
-        triangles
+        let grid = MembraneGrid {
+            min_x: 0.0,
+            min_z: 0.0,
+            max_x: 3.0,
+            max_z: 2.0,
+            cells_x: 3,
+            cells_z: 2,
+        };
+        (0..grid.triangle_count() as u32)
+            .map(|facet| grid.facet_vertices(facet))
+            .collect()
     }
 
     fn seen(facet: u32, x: f32) -> TrackedVertex {
@@ -188,7 +189,7 @@ mod tests {
     fn neighbour_crossing_is_not_popping_even_with_a_jump() {
         let triangles = grid_triangles();
         assert!(facets_adjacent(&triangles, 0, 1));
-        // Facet 0 = [0, 4, 1] and facet 2 = [1, 5, 2] share vertex 1 only: still a neighbour.
+        // Facet 0 = [0, 4, 5] and facet 2 = [1, 5, 6] share vertex 5 only: still a neighbour.
         assert!(facets_adjacent(&triangles, 0, 2));
         assert!(!vertex_pops(seen(0, 10.0), seen(2, 30.0), &triangles));
         assert!(!vertex_pops(seen(0, 10.0), seen(1, 30.0), &triangles));
@@ -198,7 +199,7 @@ mod tests {
     #[test]
     fn distant_facet_with_a_jump_pops_and_without_does_not() {
         let triangles = grid_triangles();
-        // Facet 0 = [0, 4, 1] and facet 11 = [7, 10, 11]: no shared vertex.
+        // Facet 0 = [0, 4, 5] and facet 11 = [6, 11, 7]: no shared vertex.
         assert!(!facets_adjacent(&triangles, 0, 11));
         assert!(vertex_pops(seen(0, 10.0), seen(11, 12.5), &triangles));
         assert!(!vertex_pops(seen(0, 10.0), seen(11, 11.5), &triangles));

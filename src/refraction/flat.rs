@@ -122,13 +122,8 @@ mod tests {
     /// for eyes and points from grazing to straight down, shallow to deep.
     #[test]
     fn newton_agrees_with_bisection_to_the_last_bits() {
-        let mut state = 0x5EED_F1A7_u64;
-        let mut unit = || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = crate::seeded::SplitMix64::new(0x5EED_F1A7);
+        let mut unit = || rng.unit();
         for _ in 0..2000 {
             let eye = DVec3::new(
                 40.0 * unit() - 20.0,

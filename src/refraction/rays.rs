@@ -1,6 +1,7 @@
 //! Refraction rays (ALGORITHM §1-§4): receives the membrane, the eye and the two indices of
-//! refraction; returns one refraction ray per membrane vertex (origin, unit direction, Schlick
-//! Fresnel reflectance, and whether it had to be extrapolated). Every vertex gets a ray: back-facing
+//! refraction; returns one refraction ray per membrane vertex (origin, unit direction, and whether
+//! it had to be extrapolated), and Schlick's Fresnel reflectance, which the shading model
+//! ([`crate::gpu::shading`]) evaluates per pixel. Every vertex gets a ray: back-facing
 //! and totally internally reflected vertices get the extrapolations of §2, continuous at their
 //! borders, so cells exist for every facet and rays never jump as the eye moves.
 
@@ -34,8 +35,6 @@ pub struct RefractionRay {
     pub origin: Vec3,
     /// Unit direction `T_i` of the refracted ray.
     pub direction: Vec3,
-    /// Schlick's fraction of light reflected (the sky weight); `1 - F` is refracted.
-    pub fresnel_reflectance: f32,
     pub extrapolation: Extrapolation,
 }
 
@@ -117,12 +116,6 @@ pub fn schlick_reflectance(cos_incidence: f32, radicand: f32, n1: f32, n2: f32) 
     r0 + (1.0 - r0) * (1.0 - x).powi(5)
 }
 
-/// Apparent distance of an object at true distance `true_distance_m` behind the membrane along the
-/// refracted ray (ALGORITHM §4): `eta * d`, `eta = n1 / n2`.
-pub fn foreshortened_distance_m(eta: f32, true_distance_m: f32) -> f32 {
-    eta * true_distance_m
-}
-
 /// The refraction ray of one membrane vertex seen from `eye`.
 pub fn refraction_ray(
     position: Vec3,
@@ -133,19 +126,9 @@ pub fn refraction_ray(
 ) -> RefractionRay {
     let incident = (position - eye).normalize_or(Vec3::NEG_Y);
     let refraction = refract(incident, normal, n_above / n_below);
-    let fresnel_reflectance = match refraction.extrapolation {
-        Extrapolation::TotalInternalReflection => 1.0,
-        _ => schlick_reflectance(
-            refraction.cos_incidence.max(0.0),
-            refraction.radicand,
-            n_above,
-            n_below,
-        ),
-    };
     RefractionRay {
         origin: position,
         direction: refraction.direction,
-        fresnel_reflectance,
         extrapolation: refraction.extrapolation,
     }
 }
@@ -318,8 +301,6 @@ mod tests {
         // n1 > n2 uses the transmitted cosine; TIR reflects everything.
         assert!((schlick_reflectance(1.0, 1.0, WATER, AIR) - r0).abs() < 1e-7);
         assert_eq!(schlick_reflectance(0.5, -0.1, WATER, AIR), 1.0);
-        let ray = refraction_ray(Vec3::ZERO, Vec3::Y, Vec3::new(0.0, 1.0, 0.0), AIR, WATER);
-        assert!((ray.fresnel_reflectance - r0).abs() < 1e-6);
         // Monotone: more grazing reflects more.
         let mut last = 0.0;
         for i in 0..=20 {
@@ -328,11 +309,5 @@ mod tests {
             assert!(f >= last);
             last = f;
         }
-    }
-
-    #[test]
-    fn foreshortening_scales_by_eta() {
-        assert!((foreshortened_distance_m(AIR / WATER, 1.333) - 1.0).abs() < 1e-6);
-        assert_eq!(foreshortened_distance_m(0.5, 0.0), 0.0);
     }
 }

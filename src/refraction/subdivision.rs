@@ -79,19 +79,9 @@ pub struct Subdivider<'a> {
 }
 
 impl Subdivider<'_> {
-    /// The triangles `triangle` is drawn as (appended to `out`, winding kept).
-    pub fn subdivide(
-        &self,
-        triangle: [SubdivisionVertex; 3],
-        out: &mut Vec<[SubdivisionVertex; 3]>,
-    ) -> SubdivisionStats {
-        let first = std::array::from_fn(|k| self.split_edge(&triangle[k], &triangle[(k + 1) % 3]));
-        self.subdivide_from(triangle, first, out)
-    }
-
-    /// [`Self::subdivide`] given the answers of [`Self::split_edge`] for the triangle's own edges
-    /// (`first[k]` for `triangle[k]`-`triangle[k + 1]`): a frame computes them once per edge shared
-    /// by two triangles. The same output as `subdivide`, since the answers are the same.
+    /// The triangles `triangle` is drawn as (appended to `out`, winding kept), given the answers
+    /// of [`Self::split_edge`] for its own edges (`first[k]` for `triangle[k]`-`triangle[k + 1]`):
+    /// a frame computes them once per edge, shared by the two triangles on it.
     pub fn subdivide_from(
         &self,
         triangle: [SubdivisionVertex; 3],

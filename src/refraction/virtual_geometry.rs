@@ -615,12 +615,11 @@ fn append_under(
 
 #[cfg(test)]
 pub(crate) mod tests {
-    use glam::DVec3;
-
     use super::*;
     use crate::mesh::{Material, Mesh};
     use crate::refraction::flags::facets_adjacent;
     use crate::refraction::flat::flat_sight_point;
+    use crate::refraction::search::test_support::membrane_from;
     use crate::refraction::search::{CellMode, RefractionSetup};
     use crate::water::{FlatHeightField, HeightField, MembraneGrid};
 
@@ -665,37 +664,6 @@ pub(crate) mod tests {
         }
     }
 
-    /// The membrane layout of `crate::water`: row-major in z then x, two counter-clockwise (seen from
-    /// above) triangles per cell, analytic normals.
-    fn membrane_of(surface: &dyn HeightField, grid: MembraneGrid) -> Membrane {
-        let (nx, nz) = (grid.cells_x, grid.cells_z);
-        let mut positions = Vec::new();
-        let mut normals = Vec::new();
-        for iz in 0..=nz {
-            for ix in 0..=nx {
-                let x = grid.min_x + (grid.max_x - grid.min_x) * ix as f64 / nx as f64;
-                let z = grid.min_z + (grid.max_z - grid.min_z) * iz as f64 / nz as f64;
-                positions.push(DVec3::new(x, surface.height(x, z), z).as_vec3());
-                normals.push(surface.normal(x, z).as_vec3());
-            }
-        }
-        let row = nx + 1;
-        let mut triangles = Vec::new();
-        for iz in 0..nz {
-            for ix in 0..nx {
-                let a = iz * row + ix;
-                triangles.push([a, a + row, a + 1]);
-                triangles.push([a + 1, a + row, a + row + 1]);
-            }
-        }
-        Membrane {
-            grid,
-            positions,
-            normals,
-            triangles,
-        }
-    }
-
     pub(crate) fn grid(min: (f64, f64), max: (f64, f64), cells: (u32, u32)) -> MembraneGrid {
         MembraneGrid {
             min_x: min.0,
@@ -733,18 +701,6 @@ pub(crate) mod tests {
         }
     }
 
-    /// Seeded, dependency-free uniform numbers in [0, 1) (64-bit LCG, top bits).
-    struct Lcg(u64);
-    impl Lcg {
-        fn next(&mut self) -> f64 {
-            self.0 = self
-                .0
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (self.0 >> 11) as f64 / (1u64 << 53) as f64
-        }
-    }
-
     /// Eye 1 m above flat water, looking down into it: the refraction rays turn strongly across the
     /// membrane, so the error of interpolating them linearly across a facet is large enough to
     /// measure far above f32 noise.
@@ -763,13 +719,13 @@ pub(crate) mod tests {
 
     /// Seeded points under the flat water, each the corner of its own tiny triangle.
     fn flat_sample_object(count: usize) -> Object {
-        let mut random = Lcg(0x5eed_f1a7);
+        let mut random = crate::seeded::SplitMix64::new(0x5eed_f1a7);
         let mut positions = Vec::new();
         for _ in 0..count {
             let p = Vec3::new(
-                (-1.5 + 3.0 * random.next()) as f32,
-                (-2.0 + 1.8 * random.next()) as f32,
-                (-1.5 + 3.3 * random.next()) as f32,
+                (-1.5 + 3.0 * random.unit()) as f32,
+                (-2.0 + 1.8 * random.unit()) as f32,
+                (-1.5 + 3.3 * random.unit()) as f32,
             );
             positions.extend([
                 p,
@@ -786,7 +742,7 @@ pub(crate) mod tests {
     /// Virtual vertices of every sample under flat water seen through a membrane of `cells` x `cells`.
     fn flat_water_geometry(cells: u32, search: ImageSearch, objects: &[Object]) -> VirtualGeometry {
         let surface = FlatHeightField { level_m: 0.0 };
-        let membrane = membrane_of(&surface, grid((-2.0, -2.0), (2.0, 2.0), (cells, cells)));
+        let membrane = membrane_from(&surface, grid((-2.0, -2.0), (2.0, 2.0), (cells, cells)));
         let field = RefractionField::build(
             &membrane,
             &surface,
@@ -923,7 +879,7 @@ pub(crate) mod tests {
         // sight points beyond the membrane's edge, so they have no image.
         let eye = Vec3::new(-5.0, 2.0, 0.0);
         let surface = FlatHeightField { level_m: 0.0 };
-        let membrane = membrane_of(&surface, grid((-2.0, -2.0), (2.0, 2.0), (16, 16)));
+        let membrane = membrane_from(&surface, grid((-2.0, -2.0), (2.0, 2.0), (16, 16)));
         let positions = vec![
             Vec3::new(-1.9, -2.0, 0.0), // 0: no image
             Vec3::new(0.5, -0.3, 0.0),  // 1: image
@@ -1024,7 +980,7 @@ pub(crate) mod tests {
     #[test]
     fn convergence_zone_under_a_steep_crest() {
         let surface = Crest { centre_x_m: 0.0 };
-        let membrane = membrane_of(&surface, grid((-1.5, -1.0), (1.5, 1.0), (96, 16)));
+        let membrane = membrane_from(&surface, grid((-1.5, -1.0), (1.5, 1.0), (96, 16)));
         let eye = Vec3::new(0.0, 2.5, -1.5);
         let field = RefractionField::build(&membrane, &surface, setup(eye), (-2.5, 0.4));
         let mut images = Vec::new();
@@ -1128,8 +1084,8 @@ pub(crate) mod tests {
         let (before_surface, after_surface) =
             (Crest { centre_x_m: -0.05 }, Crest { centre_x_m: 0.05 });
         let (before_membrane, after_membrane) = (
-            membrane_of(&before_surface, extent),
-            membrane_of(&after_surface, extent),
+            membrane_from(&before_surface, extent),
+            membrane_from(&after_surface, extent),
         );
         let before_field =
             RefractionField::build(&before_membrane, &before_surface, setup(eye), (-2.5, 0.4));
@@ -1206,7 +1162,7 @@ pub(crate) mod tests {
     #[test]
     fn crossing_into_a_neighbouring_cell_does_not_pop() {
         let surface = FlatHeightField { level_m: 0.0 };
-        let membrane = membrane_of(&surface, grid((-2.0, -2.0), (2.0, 2.0), (16, 16)));
+        let membrane = membrane_from(&surface, grid((-2.0, -2.0), (2.0, 2.0), (16, 16)));
         let point = Vec3::new(0.3, -1.0, 0.5);
         let objects = [probe_object(point)];
         let frame = |eye: Vec3, previous: Option<&TrackingState>| {
@@ -1289,7 +1245,7 @@ pub(crate) mod tests {
         };
         let frame = |centre_x_m: f64, search: ImageSearch, previous: Option<&TrackingState>| {
             let surface = Crest { centre_x_m };
-            let membrane = membrane_of(&surface, extent);
+            let membrane = membrane_from(&surface, extent);
             let field = RefractionField::build(
                 &membrane,
                 &surface,

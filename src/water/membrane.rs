@@ -410,16 +410,9 @@ mod tests {
         let plane =
             FnHeightField::new(|x, z| 0.3 * x - 0.2 * z + 1.0).with_gradient(|_, _| (0.3, -0.2));
         let membrane = build_membrane(&plane, &grid);
-        let mut state: u64 = 42;
+        let mut rng = crate::seeded::SplitMix64::new(42);
         for _ in 0..500 {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            let fx = (state >> 11) as f64 / (1u64 << 53) as f64;
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            let fz = (state >> 11) as f64 / (1u64 << 53) as f64;
+            let (fx, fz) = (rng.unit(), rng.unit());
             let (x, z) = (-2.0 + 5.0 * fx, -1.0 + 3.5 * fz);
             let facet = membrane.facet_at_xz(x, z).expect("inside");
             let [p0, p1, p2] = membrane.triangles[facet as usize]

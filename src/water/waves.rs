@@ -277,15 +277,10 @@ mod tests {
         }
     }
 
-    /// Seeded points: a small LCG so the test needs no extra crate and repeats exactly.
+    /// Seeded points, so the test repeats exactly.
     fn seeded_points(count: usize, half_extent_m: f64) -> Vec<(f64, f64)> {
-        let mut state: u64 = 0x5eed_1234_abcd_0001;
-        let mut next = move || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((state >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
-        };
+        let mut rng = crate::seeded::SplitMix64::new(0x5eed_1234_abcd_0001);
+        let mut next = move || rng.range(-1.0, 1.0);
         (0..count)
             .map(|_| (next() * half_extent_m, next() * half_extent_m))
             .collect()

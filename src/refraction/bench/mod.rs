@@ -14,6 +14,9 @@
 //! 450 units above its centre, n = 1.0 / 1.51. Accelerated (build + queries) against brute force
 //! (rays + every cell per vertex); the two answers are compared vertex by vertex.
 
+#[cfg(test)]
+mod tuning;
+
 use std::time::Instant;
 
 use glam::Vec3;
@@ -74,21 +77,6 @@ fn membrane(surface: &dyn HeightField, grid: MembraneGrid) -> Membrane {
     build_membrane(surface, &grid)
 }
 
-/// Seeded SplitMix64 in [0, 1).
-struct Rng(u64);
-impl Rng {
-    fn unit(&mut self) -> f32 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        ((z ^ (z >> 31)) >> 40) as f32 / (1u64 << 24) as f32
-    }
-    fn range(&mut self, lo: f32, hi: f32) -> f32 {
-        lo + (hi - lo) * self.unit()
-    }
-}
-
 /// The pool's under-water vertices: floor grid, walls, a sphere and a box (100,000 in all).
 fn pool_vertices() -> Vec<Vec3> {
     let (half, depth) = (8.0_f32, 2.0_f32);
@@ -118,13 +106,13 @@ fn pool_vertices() -> Vec<Vec3> {
         }
     }
     // A sphere (radius 0.6 m) resting on the floor, and a box, to 100,000 vertices.
-    let mut rng = Rng(0xB0B);
+    let mut rng = crate::seeded::SplitMix64::new(0xB0B);
     let centre = Vec3::new(2.0, -depth + 0.6, 1.0);
     while points.len() < 88_000 {
         let d = Vec3::new(
-            rng.range(-1.0, 1.0),
-            rng.range(-1.0, 1.0),
-            rng.range(-1.0, 1.0),
+            rng.range_f32(-1.0, 1.0),
+            rng.range_f32(-1.0, 1.0),
+            rng.range_f32(-1.0, 1.0),
         );
         if d.length_squared() > 0.01 && d.length_squared() <= 1.0 {
             points.push(centre + d.normalize() * 0.6);
@@ -132,9 +120,9 @@ fn pool_vertices() -> Vec<Vec3> {
     }
     while points.len() < 100_000 {
         let (u, v, face) = (
-            rng.range(-0.5, 0.5),
-            rng.range(-0.5, 0.5),
-            (rng.unit() * 6.0) as u32,
+            rng.range_f32(-0.5, 0.5),
+            rng.range_f32(-0.5, 0.5),
+            (rng.unit_f32() * 6.0) as u32,
         );
         let local = match face {
             0 => Vec3::new(0.5, u, v),
@@ -233,13 +221,13 @@ pub fn bench_search_with(repetitions: usize) -> SearchBenchFigures {
         cells_z: 30,
     };
     let thesis_membrane = membrane(&thesis_surface, thesis_grid);
-    let mut rng = Rng(0x7E515);
+    let mut rng = crate::seeded::SplitMix64::new(0x7E515);
     let thesis_points: Vec<Vec3> = (0..2628)
         .map(|_| {
             Vec3::new(
-                rng.range(-142.0, 142.0),
-                rng.range(-400.0, -6.0),
-                rng.range(-142.0, 142.0),
+                rng.range_f32(-142.0, 142.0),
+                rng.range_f32(-400.0, -6.0),
+                rng.range_f32(-142.0, 142.0),
             )
         })
         .collect();
