@@ -47,6 +47,7 @@ pub mod refraction;
 pub mod scene;
 pub mod seeded;
 pub mod sim;
+pub mod stability;
 pub mod timeline;
 pub mod tools;
 pub mod water;

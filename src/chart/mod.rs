@@ -592,7 +592,7 @@ impl ChartOutcome {
 
 /// The adapter's name without the driver details in parentheses (`llvmpipe (LLVM 15.0.6, 256
 /// bits) (Vulkan, Cpu, ...)` -> `llvmpipe, Vulkan`), to fit a chart's caption.
-fn short_adapter(adapter: &str) -> String {
+pub(crate) fn short_adapter(adapter: &str) -> String {
     let name = adapter.split(" (").next().unwrap_or(adapter).trim();
     let backend = adapter
         .find(") (")

@@ -43,7 +43,7 @@ pub const PNG_SIZE: (u32, u32) = (1200, 800);
 /// Size of the SVG chart, in its user units.
 pub const SVG_SIZE: (u32, u32) = (1200, 800);
 
-pub(crate) fn register_font() {
+fn register_font() {
     static REGISTER: Once = Once::new();
     REGISTER.call_once(|| {
         // The bytes are a valid TrueType file compiled into the binary: failure would be a build defect.
@@ -55,24 +55,40 @@ pub(crate) fn register_font() {
 
 /// The chart as an SVG document.
 pub fn chart_svg(input: &ChartInput) -> Result<String, String> {
+    svg_of(SVG_SIZE, |root| draw(root, input))
+}
+
+/// The chart as an opaque RGBA image of [`PNG_SIZE`].
+pub fn chart_image(input: &ChartInput) -> Result<RgbaImage, String> {
+    image_of(PNG_SIZE, |root| draw(root, input))
+}
+
+/// What `draw` draws on an SVG drawing area of `size`, as an SVG document (fonts registered).
+pub(crate) fn svg_of(
+    size: (u32, u32),
+    draw: impl FnOnce(&DrawingArea<SVGBackend<'_>, Shift>) -> Result<(), String>,
+) -> Result<String, String> {
     register_font();
     let mut svg = String::new();
     {
-        let root = SVGBackend::with_string(&mut svg, SVG_SIZE).into_drawing_area();
-        draw(&root, input)?;
+        let root = SVGBackend::with_string(&mut svg, size).into_drawing_area();
+        draw(&root)?;
         root.present().map_err(|e| e.to_string())?;
     }
     Ok(svg)
 }
 
-/// The chart as an opaque RGBA image of [`PNG_SIZE`].
-pub fn chart_image(input: &ChartInput) -> Result<RgbaImage, String> {
+/// What `draw` draws on a bitmap of `size`, as an opaque RGBA image (fonts registered).
+pub(crate) fn image_of(
+    size: (u32, u32),
+    draw: impl FnOnce(&DrawingArea<BitMapBackend<'_>, Shift>) -> Result<(), String>,
+) -> Result<RgbaImage, String> {
     register_font();
-    let (width, height) = PNG_SIZE;
+    let (width, height) = size;
     let mut rgb = vec![0u8; (width * height * 3) as usize];
     {
-        let root = BitMapBackend::with_buffer(&mut rgb, PNG_SIZE).into_drawing_area();
-        draw(&root, input)?;
+        let root = BitMapBackend::with_buffer(&mut rgb, size).into_drawing_area();
+        draw(&root)?;
         root.present().map_err(|e| e.to_string())?;
     }
     let rgba = rgb

@@ -38,6 +38,11 @@ pub const IMAGE_SEPARATION_PX: f64 = 2.0;
 /// An axis-aligned box: (min, max) corners.
 type Bounds = ([f32; 3], [f32; 3]);
 
+/// A point whose projection onto a triangle's plane has a barycentric weight below minus this is
+/// beyond that triangle's edge. Slightly above 0 so that a point on an edge shared by two
+/// triangles (f32 `P`, chords of a curved surface) is on both.
+pub const EDGE_SLACK: f64 = 0.01;
+
 /// Pieces per leaf of the hierarchy.
 const LEAF_SIZE: usize = 8;
 
@@ -461,7 +466,16 @@ impl<'a> PositionMap<'a> {
                 continue;
             }
             for piece in &self.pieces[node.first as usize..(node.first + node.count) as usize] {
-                let size = self.piece_size(piece.corners.map(|c| c as usize));
+                let corners = piece.corners.map(|c| c as usize);
+                // Beyond a triangle's edge is not on it, however close: a point just past a
+                // silhouette is not seen there (it would measure as on the edge).
+                let beyond_an_edge =
+                    projection_weights(corners.map(|c| self.position_of(c)), target)
+                        .is_some_and(|w| w.iter().any(|&c| c < -EDGE_SLACK));
+                if beyond_an_edge {
+                    continue;
+                }
+                let size = self.piece_size(corners);
                 let (distance, screen) = self.closest_on_piece(piece, target);
                 if distance <= CONTAINMENT_TOLERANCE * size {
                     // Relative to the piece's size, so fits on pieces of different sizes compare.
@@ -539,6 +553,22 @@ impl<'a> PositionMap<'a> {
             }),
         }
     }
+}
+
+/// Barycentric weights of `target`'s orthogonal projection onto the plane of triangle `p`, not
+/// clamped to the triangle (a weight below 0: beyond the edge opposite that corner); `None` for a
+/// triangle without area.
+fn projection_weights(p: [[f64; 3]; 3], target: [f64; 3]) -> Option<[f64; 3]> {
+    let (e1, e2, r) = (sub(p[1], p[0]), sub(p[2], p[0]), sub(target, p[0]));
+    let (d11, d12, d22) = (dot(e1, e1), dot(e1, e2), dot(e2, e2));
+    let det = d11 * d22 - d12 * d12;
+    if det <= 1e-18 * d11.max(d22).powi(2) {
+        return None;
+    }
+    let (r1, r2) = (dot(r, e1), dot(r, e2));
+    let v = (d22 * r1 - d12 * r2) / det;
+    let w = (d11 * r2 - d12 * r1) / det;
+    Some([1.0 - v - w, v, w])
 }
 
 /// Barycentric weights of the point of triangle `p` nearest `target` (Ericson, Real-Time Collision
@@ -647,6 +677,22 @@ mod tests {
         let point = [[1.0, 2.0, 3.0]; 3];
         let w = closest_point_weights(point, [0.0, 0.0, 0.0]);
         assert!((w.iter().sum::<f64>() - 1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn projection_weights_are_unclamped() {
+        let p = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+        let w = projection_weights(p, [0.25, 0.5, 7.0]).unwrap();
+        assert!(
+            (w[0] - 0.25).abs() < 1e-12
+                && (w[1] - 0.25).abs() < 1e-12
+                && (w[2] - 0.5).abs() < 1e-12
+        );
+        let beyond = projection_weights(p, [-0.3, 0.5, 0.0]).unwrap();
+        assert!((beyond[1] + 0.3).abs() < 1e-12, "{beyond:?}");
+        assert!(
+            projection_weights([[0.0; 3], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0]], [0.0; 3]).is_none()
+        );
     }
 
     #[test]

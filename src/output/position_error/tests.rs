@@ -218,10 +218,11 @@ fn a_jump_in_p_within_one_object_does_not_spoil_the_fit() {
                 .unwrap();
             let error = (place.screen[0] - x as f64).hypot(place.screen[1] - y as f64);
             // B at row y' sees what A sees at y' + 0.3: row 20's point (the first of the lower
-            // side) would be at y' = 19.7, across the jump, where B shows the upper side. It is
-            // placed on the lower side's edge (row 20: within the containment tolerance of it, or
-            // as the nearest point seen), never on the upper side.
+            // side) would be at y' = 19.7, across the jump, where B shows the upper side. B does
+            // not see it; it is measured to the nearest point B shows, on the lower side's edge
+            // (row 20), never on the upper side.
             if y == 20 {
+                assert!(!place.seen, "({x}, {y}): {place:?}");
                 assert!(
                     (place.screen[1] - 20.0).abs() < 1e-6
                         && (place.screen[0] - x as f64).abs() < 0.01,
