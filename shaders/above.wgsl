@@ -31,8 +31,9 @@ fn fs_above(in: AboveVarying) -> Targets {
     let normal = normalize(in.normal);
     var out: Targets;
     out.beauty = vec4<f32>(shade_above(albedo(in.material, in.uv), normal), 1.0);
-    let distance_m = length(in.world_position - frame.eye.xyz);
-    out.position = vec4<u32>(bitcast<vec3<u32>>(in.world_position), bitcast<u32>(distance_m));
+    let depth_m = view_depth(in.world_position);
+    out.position = vec4<u32>(bitcast<vec3<u32>>(in.world_position), bitcast<u32>(depth_m));
     out.flags = flags_and_object(0u, in.material);
+    out.extra = vec4<u32>(0u, 0u, 0u, bitcast<u32>(depth_m));
     return out;
 }

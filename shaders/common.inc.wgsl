@@ -22,6 +22,8 @@ struct Frame {
     sun_in_water: vec4<f32>,
     // x: n_above, y: n_below, z: mean_level_m.
     water: vec4<f32>,
+    // xyz: unit view direction (camera forward); depths are measured along it.
+    view_forward: vec4<f32>,
 };
 
 // One material: xyz = bits of the linear tint, w = texture layer. Stored as integers so the layer
@@ -37,22 +39,35 @@ struct Materials {
 @group(0) @binding(2) var textures: texture_2d_array<f32>;
 @group(0) @binding(3) var texture_sampler: sampler;
 
-// Bit patterns stored in the position target (float32 as u32 on every backend).
-const NAN_BITS: u32 = 0x7fc00000u;
-const INFINITY_BITS: u32 = 0x7f800000u;
+// Depth where nothing is seen (sky, or water with nothing behind it): crate::draw::SKY_DEPTH_M.
+const SKY_DEPTH_M: f32 = 1e10;
+
+// Depth along the view axis of a world point, as the EXR's `Z` holds it.
+fn view_depth(world_position: vec3<f32>) -> f32 {
+    return dot(world_position - frame.eye.xyz, frame.view_forward.xyz);
+}
 
 // Every draw of the main render pass writes the same four targets; write masks decide what
 // actually lands.
 struct Targets {
     @location(0) beauty: vec4<f32>,
-    // xyz: world position bits; w: distance-from-eye bits.
+    // xyz: world position bits (0 where nothing is seen); w: bits of the first surface's depth
+    // along the view axis.
     @location(1) position: vec4<u32>,
-    // Bits 0-7: the flag bits (crate::draw::flag_bits); bits 8-31: object index + 1 (0 = none).
+    // Bits 0-3: the flag bits (crate::draw::flag_bits); bit 7: the first surface is the water
+    // (WATER_BIT); bits 8-31: object index + 1 (0 = none).
     @location(2) flags: u32,
     // Bits of the front-most membrane fragment's sky reflection, premultiplied (F * sky, F), kept
-    // until the under-water image is drawn and blended under it (shaders/water_clear.wgsl).
+    // until the under-water image is drawn and blended under it (shaders/water_clear.wgsl); read
+    // back too, where WATER_BIT is set.
     @location(3) reflection: vec4<u32>,
+    // xyz: reserved (zero); w: bits of the apparent depth: the view depth of what the pixel shows
+    // (the virtual image for pixels seen through water).
+    @location(4) extra: vec4<u32>,
 };
+
+// Set in the flags target where the membrane is the first surface (gpu::WATER_BIT).
+const WATER_BIT: u32 = 0x80u;
 
 // The flags target's word for a fragment of object `material` (its index in the frame's object
 // list) with triangle flags `flags`; the CPU splits it again (gpu::OBJECT_SHIFT).

@@ -1,6 +1,6 @@
 // Pass b: the water membrane, drawn once, depth-tested against the geometry above water and
 // writing depth, so that the last fragment written in each pixel is the front-most visible one.
-// It marks the stencil, writes its distance (position.w) and keeps its sky reflection by
+// It marks the stencil, writes its depth (position.w) and keeps its sky reflection by
 // Schlick's F, premultiplied, in the reflection target: (F * sky(reflect(I, N)), F). Pass d
 // (shaders/water_clear.wgsl) blends that over the refracted image:
 // out = F * sky(reflect(I, N)) + (1 - F) * dst, by blend One / OneMinusSrcAlpha with src.a = F.
@@ -35,9 +35,9 @@ fn fs_membrane(in: MembraneVarying) -> Targets {
     let reflectance = schlick_reflectance(incident, normal);
     let reflected = reflect(incident, normal);
     var out: Targets;
-    // Only w (the distance to the membrane) and the reflection are written: beauty and xyz are
-    // the under-water image's, drawn after this.
-    out.position = vec4<u32>(0u, 0u, 0u, bitcast<u32>(distance_m));
+    // Only w (the membrane's depth along the view axis) and the reflection are written: beauty
+    // and xyz are the under-water image's, drawn after this.
+    out.position = vec4<u32>(0u, 0u, 0u, bitcast<u32>(view_depth(in.world_position)));
     out.reflection = bitcast<vec4<u32>>(vec4<f32>(reflectance * sky_radiance(reflected), reflectance));
     return out;
 }

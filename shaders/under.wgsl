@@ -19,6 +19,9 @@ struct UnderVarying {
     @location(3) water_path_m: f32,
     @location(4) @interpolate(flat, either) material: u32,
     @location(5) @interpolate(flat, either) flags: u32,
+    // Depth along the view axis of the virtual position (affine in world space, so perspective-
+    // correct interpolation gives the virtual surface's depth exactly).
+    @location(6) apparent_depth_m: f32,
 };
 
 @vertex
@@ -31,6 +34,7 @@ fn vs_under(vertex: UnderVertex) -> UnderVarying {
     out.water_path_m = vertex.water_path_m;
     out.material = vertex.material;
     out.flags = vertex.flags;
+    out.apparent_depth_m = view_depth(vertex.virtual_position);
     return out;
 }
 
@@ -40,8 +44,9 @@ fn fs_under(in: UnderVarying) -> Targets {
     let colour = shade_under(albedo(in.material, in.uv), normal, in.true_position, max(in.water_path_m, 0.0));
     var out: Targets;
     out.beauty = vec4<f32>(colour, 1.0);
-    // w is masked off: the distance is the membrane's, written by pass d.
+    // w is masked off: the depth is the membrane's, written by pass b.
     out.position = vec4<u32>(bitcast<vec3<u32>>(in.true_position), 0u);
-    out.flags = flags_and_object(in.flags, in.material);
+    out.flags = flags_and_object(in.flags, in.material) | WATER_BIT;
+    out.extra = vec4<u32>(0u, 0u, 0u, bitcast<u32>(in.apparent_depth_m));
     return out;
 }

@@ -11,9 +11,11 @@ fn vs_far(@builtin(vertex_index) vertex_index: u32) -> @builtin(position) vec4<f
 fn fs_deep_water(@builtin(position) pixel: vec4<f32>) -> Targets {
     var out: Targets;
     out.beauty = vec4<f32>(frame.scatter_color.xyz, 1.0);
-    // Nothing behind the water here: no true position (w is masked off; pass d writes it).
-    out.position = vec4<u32>(NAN_BITS, NAN_BITS, NAN_BITS, 0u);
-    out.flags = 0u;
+    // Nothing behind the water here: no true position (w is masked off: the membrane's depth,
+    // written by pass b), nothing seen (apparent depth), but the water.
+    out.position = vec4<u32>(0u, 0u, 0u, 0u);
+    out.flags = WATER_BIT;
+    out.extra = vec4<u32>(0u, 0u, 0u, bitcast<u32>(SKY_DEPTH_M));
     return out;
 }
 

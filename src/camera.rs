@@ -16,6 +16,17 @@ pub struct Camera {
 }
 
 impl Camera {
+    /// Unit view direction, from the eye toward the target: depths are measured along it.
+    pub fn forward(&self) -> Vec3 {
+        (self.target - self.eye).normalize()
+    }
+
+    /// Depth along the view axis of a world point (negative behind the eye): what the EXR's `Z`
+    /// holds, as Blender writes it.
+    pub fn view_depth(&self, point_in_world: Vec3) -> f32 {
+        (point_in_world - self.eye).dot(self.forward())
+    }
+
     pub fn view_from_world(&self) -> Mat4 {
         glam::camera::rh::view::look_at_mat4(self.eye, self.target, self.up)
     }

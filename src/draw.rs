@@ -112,26 +112,57 @@ pub struct FrameView {
     pub water: WaterOptics,
 }
 
+/// Depth written where a pixel sees nothing (sky; the apparent depth of water with nothing behind
+/// it), metres: Blender's background depth, finite so that compositing arithmetic never makes NaN.
+pub const SKY_DEPTH_M: f32 = 1e10;
+
 /// What the GPU stage returns for one frame, read back to the CPU, row-major, top row first.
+/// No layer holds NaN or an infinity: where nothing is seen, each holds the value the EXR channel
+/// map states (README, "The EXR channel map").
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct RenderedFrame {
     pub width: u32,
     pub height: u32,
     /// Linear HDR beauty, alpha 1 where anything (sky included) was drawn.
     pub beauty_rgba: Vec<[f32; 4]>,
-    /// Distance from the eye to the first surface the pixel's sight ray meets (the water surface for
-    /// pixels seen through water), metres; `f32::INFINITY` for sky.
-    pub distance_m: Vec<f32>,
+    /// Depth along the view axis (camera-space distance in front of the eye, as Blender's `Z`) of
+    /// the first surface the pixel's sight ray meets (the water surface for pixels seen through
+    /// water), metres; [`SKY_DEPTH_M`] for sky.
+    pub depth_m: Vec<f32>,
+    /// Depth along the view axis of what the pixel shows: for pixels seen through water the
+    /// virtual (apparent) image of the under-water point, [`SKY_DEPTH_M`] for water with nothing
+    /// behind it; elsewhere equal to `depth_m`. Empty when read from an EXR written before this
+    /// layer existed.
+    pub apparent_depth_m: Vec<f32>,
     /// True world position of what the pixel shows (for pixels seen through water: the true,
-    /// under-water point, not its virtual image); NaN for sky and for water with nothing behind it.
+    /// under-water point, not its virtual image); 0 for sky and for water with nothing behind it
+    /// (`object` tells those apart from a point at the origin).
     pub position: Vec<[f32; 3]>,
     /// [`flag_bits`] of the virtual triangle seen in each pixel, 0 elsewhere.
     pub flags: Vec<u32>,
-    /// Which object each pixel sees (directly or through the water): `k + 1` for the object at
-    /// index `k` of the frame's object list (the order of [`FrameDraw::materials`]: static objects,
-    /// then posed characters), [`NO_OBJECT`] for sky and for water with nothing behind it. Empty
-    /// when read from an EXR written before this layer existed.
+    /// Which object each pixel sees (directly or through the water): its scene object id
+    /// (1-based: static objects in scene order, each part of a pool on its own, then one id per
+    /// character, see [`crate::frame::RenderJob::object_names`]), [`NO_OBJECT`] for sky and for
+    /// water with nothing behind it. The GPU stage and the tracer fill it with the frame's object
+    /// (material) index + 1; [`crate::frame::RenderJob::render_refracted`] maps that to the scene
+    /// id. Empty when read from an EXR written before this layer existed.
     pub object: Vec<u32>,
+    /// 1 where the first surface the pixel's ray meets is the water, 0 elsewhere. Empty when read
+    /// from an EXR written before this layer existed.
+    pub water_matte: Vec<f32>,
+    /// Where `water_matte` is 1: the sky reflected by the water, weighted by Schlick's reflectance
+    /// F, in rgb, and F in a; 0 elsewhere. The beauty there is this reflection plus (1 - F) times
+    /// the refracted image. Read from an EXR, F is 1 where nothing is behind the water (the file
+    /// keeps F as the Cryptomatte coverage, which is 1 there); empty when read from an EXR
+    /// written before this layer existed.
+    pub water_reflection: Vec<[f32; 4]>,
+}
+
+impl RenderedFrame {
+    /// Pixels of the frame (`width * height`).
+    pub fn pixel_count(&self) -> usize {
+        self.width as usize * self.height as usize
+    }
 }
 
 /// [`RenderedFrame::object`] where no object is seen.

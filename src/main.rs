@@ -81,6 +81,8 @@ enum Command {
         /// unreadable, made from other inputs).
         #[arg(long)]
         resume: bool,
+        #[command(flatten)]
+        exr: snell::output::exr::cli::ExrArgs,
     },
     /// Scrub a scene's timeline in the browser: a local web page with the frame, a timeline
     /// slider, play/pause, exposure, method, flag overlays and a strip of per-frame flag counts.
@@ -301,6 +303,7 @@ fn main() -> ExitCode {
             method,
             subdivision_px,
             resume,
+            exr,
         } => render(
             &scene,
             frames.as_deref(),
@@ -309,6 +312,7 @@ fn main() -> ExitCode {
             png,
             (method.as_deref(), subdivision_px),
             resume,
+            &exr,
         ),
         Command::Chart {
             scene,
@@ -370,6 +374,8 @@ fn quiet_vulkan_runtime_dir() {
     }
 }
 
+// The command's arguments, passed on as they were parsed.
+#[allow(clippy::too_many_arguments)]
 fn render(
     scene_path: &Path,
     frames: Option<&str>,
@@ -378,6 +384,7 @@ fn render(
     png: bool,
     (method_arg, subdivision_px): (Option<&str>, f32),
     resume: bool,
+    exr: &snell::output::exr::cli::ExrArgs,
 ) -> Result<(), SnellError> {
     let (width, height) = frame::parse_size(size)?;
     let method = match method_arg {
@@ -391,9 +398,11 @@ fn render(
             "--subdivision-px {subdivision_px}: expected a number of pixels > 0, e.g. --subdivision-px 0.25"
         )));
     }
+    let stamp = exr.stamp()?;
     let mut job = RenderJob::prepare(scene_path)?;
     job.method = method;
     job.subdivision.tolerance_px = subdivision_px;
+    job.stamp = stamp;
     let range = match frames {
         Some(text) => FrameRange::parse(text, job.timeline())?,
         None => FrameRange::whole(job.timeline()),
@@ -432,6 +441,10 @@ fn render(
         && subdivision_px != snell::refraction::subdivision::DEFAULT_TOLERANCE_PX
     {
         resume_command.push_str(&format!(" --subdivision-px {subdivision_px}"));
+    }
+    for word in exr.command_words() {
+        resume_command.push(' ');
+        resume_command.push_str(&shell_quoted(&word));
     }
     let stop = match snell::interrupt::install(resume_command.clone()) {
         Ok(flag) => Some(flag),

@@ -401,7 +401,7 @@ fn raytrace_renders_tiny_into_an_exr_with_every_layer() {
     assert_eq!((frame.width, frame.height), (64, 36));
     let pixels = 64 * 36;
     assert_eq!(frame.beauty_rgba.len(), pixels);
-    assert_eq!(frame.distance_m.len(), pixels);
+    assert_eq!(frame.depth_m.len(), pixels);
     assert_eq!(frame.position.len(), pixels);
     assert_eq!(frame.flags.len(), pixels);
     assert_eq!(frame.object.len(), pixels);
@@ -425,13 +425,17 @@ fn raytrace_renders_tiny_into_an_exr_with_every_layer() {
     assert!(frame.object.contains(&2), "the ball is in view");
     for i in 0..pixels {
         let seen = frame.object[i] != 0;
-        assert_eq!(
-            seen,
-            frame.position[i][0].is_finite(),
-            "pixel {i}: P and object disagree"
-        );
         if seen {
-            assert!(frame.distance_m[i] > 0.0 && frame.distance_m[i].is_finite());
+            assert!(frame.depth_m[i] > 0.0 && frame.depth_m[i] < snell::draw::SKY_DEPTH_M);
+            assert_ne!(
+                frame.position[i], [0.0; 3],
+                "pixel {i}: P and object disagree"
+            );
+        } else {
+            assert_eq!(
+                frame.position[i], [0.0; 3],
+                "pixel {i}: P and object disagree"
+            );
         }
     }
     let report = std::fs::read_to_string(out.join("report.jsonl")).unwrap();

@@ -7,23 +7,19 @@ use snell::draw::RenderedFrame;
 use snell::frame::RenderJob;
 use snell::gpu::Renderer;
 
-fn bits(frame: &RenderedFrame) -> (Vec<u32>, Vec<u32>, Vec<u32>, Vec<u32>) {
-    (
-        frame
-            .beauty_rgba
-            .iter()
-            .flatten()
-            .map(|v| v.to_bits())
-            .collect(),
-        frame.distance_m.iter().map(|v| v.to_bits()).collect(),
-        frame
-            .position
-            .iter()
-            .flatten()
-            .map(|v| v.to_bits())
-            .collect(),
+/// Every layer of a frame as bits.
+fn bits(frame: &RenderedFrame) -> Vec<Vec<u32>> {
+    let floats = |values: &[f32]| values.iter().map(|v| v.to_bits()).collect::<Vec<u32>>();
+    vec![
+        floats(frame.beauty_rgba.as_flattened()),
+        floats(&frame.depth_m),
+        floats(&frame.apparent_depth_m),
+        floats(frame.position.as_flattened()),
         frame.flags.clone(),
-    )
+        frame.object.clone(),
+        floats(&frame.water_matte),
+        floats(frame.water_reflection.as_flattened()),
+    ]
 }
 
 #[test]
@@ -122,4 +118,67 @@ fn fox_frames_40_to_48_alone_equal_those_of_the_full_run() {
         0,
         "the resumed job read every state from checkpoints"
     );
+}
+
+/// A frame's EXR is the same bytes run to run: the header holds no time or user unless asked.
+/// `--owner` writes `owner`, and `SOURCE_DATE_EPOCH` writes `capDate` (that time, UTC) and
+/// `utcOffset`, so a stamped render is reproducible too.
+#[test]
+fn exr_files_are_byte_identical_run_to_run_with_or_without_owner_and_date() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/tiny.toml");
+    let render = |out: &str, stamped: bool| {
+        let out_dir = dir.path().join(out);
+        let mut command = std::process::Command::new(env!("CARGO_BIN_EXE_snell"));
+        command.args([
+            "render",
+            scene.to_str().unwrap(),
+            "--frames",
+            "2",
+            "--size",
+            "64x36",
+        ]);
+        command
+            .arg("--out")
+            .arg(&out_dir)
+            .env_remove("SOURCE_DATE_EPOCH");
+        if stamped {
+            command
+                .args(["--owner", "Studio Ü"])
+                .env("SOURCE_DATE_EPOCH", "1700000000");
+        }
+        let output = command.output().unwrap();
+        assert!(
+            output.status.success(),
+            "{}",
+            String::from_utf8_lossy(&output.stderr)
+        );
+        let path = out_dir.join("tiny.0002.exr");
+        (std::fs::read(&path).unwrap(), path)
+    };
+    let (plain_a, plain_path) = render("a", false);
+    let (plain_b, _) = render("b", false);
+    assert!(plain_a == plain_b, "two plain renders differ");
+    let plain = snell::output::exr::read_channels(&plain_path)
+        .unwrap()
+        .attributes;
+    assert_eq!(
+        (plain.owner, plain.capture_date, plain.utc_offset),
+        (None, None, None)
+    );
+
+    let (stamped_a, stamped_path) = render("c", true);
+    let (stamped_b, _) = render("d", true);
+    assert!(stamped_a == stamped_b, "two stamped renders differ");
+    let stamped = snell::output::exr::read_channels(&stamped_path)
+        .unwrap()
+        .attributes;
+    // OpenEXR strings are bytes; snell writes UTF-8.
+    let owner = stamped.owner.unwrap();
+    assert_eq!(std::str::from_utf8(owner.as_slice()).unwrap(), "Studio Ü");
+    assert_eq!(
+        stamped.capture_date.unwrap().to_string(),
+        "2023:11:14 22:13:20"
+    );
+    assert_eq!(stamped.utc_offset, Some(0.0));
 }

@@ -96,13 +96,8 @@ fn edited_copy(
     let mut extra = meta.text_attributes.clone();
     edit(&mut frame, &mut extra);
     let meta = FrameMeta {
-        scene_name: "tiny".into(),
-        frame: meta.frame,
-        time_secs: meta.time_secs,
-        camera: meta.camera,
-        method: meta.method,
-        version: meta.version,
         extra,
+        ..FrameMeta::from_read(&meta, "tiny")
     };
     write_frame_exr(destination, &frame, &meta).unwrap();
 }
@@ -224,7 +219,7 @@ fn a_whole_frame_shifted_by_four_pixels_fails() {
         for row in frame.beauty_rgba.chunks_mut(width) {
             shift_row(row);
         }
-        for row in frame.distance_m.chunks_mut(width) {
+        for row in frame.depth_m.chunks_mut(width) {
             row.rotate_right(4);
         }
         for row in frame.position.chunks_mut(width) {

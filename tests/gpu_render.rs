@@ -10,7 +10,7 @@ use snell::camera::Camera;
 use snell::color::srgb8_to_linear as srgb_to_linear;
 use snell::draw::{
     flag_bits, DrawMaterial, FrameDraw, FrameView, Lighting, MembraneVertex, RenderedFrame,
-    TrueVertex, VirtualVertex, WaterOptics,
+    TrueVertex, VirtualVertex, WaterOptics, SKY_DEPTH_M,
 };
 use snell::gpu::shading::{schlick_reflectance, shade_above, shade_under, sky_radiance};
 use snell::gpu::{GpuError, Renderer};
@@ -353,9 +353,12 @@ fn every_unambiguous_pixel_matches_the_cpu_model() {
     for layer_len in [
         frame.beauty_rgba.len(),
         frame.position.len(),
-        frame.distance_m.len(),
+        frame.depth_m.len(),
+        frame.apparent_depth_m.len(),
         frame.flags.len(),
         frame.object.len(),
+        frame.water_matte.len(),
+        frame.water_reflection.len(),
     ] {
         assert_eq!(layer_len, pixel_count);
     }
@@ -364,12 +367,17 @@ fn every_unambiguous_pixel_matches_the_cpu_model() {
     for y in 0..HEIGHT {
         for x in 0..WIDTH {
             let at = (y * WIDTH + x) as usize;
-            let (beauty, position, distance, flags, object) = (
+            let (beauty, position, depth, flags, object) = (
                 frame.beauty_rgba[at],
                 frame.position[at],
-                frame.distance_m[at],
+                frame.depth_m[at],
                 frame.flags[at],
                 frame.object[at],
+            );
+            let (apparent, matte, reflection) = (
+                frame.apparent_depth_m[at],
+                frame.water_matte[at],
+                frame.water_reflection[at],
             );
             // Every pixel, ambiguous or not: only the floor's flags or none.
             assert!(
@@ -379,30 +387,41 @@ fn every_unambiguous_pixel_matches_the_cpu_model() {
             let Some((direction, seen)) = unambiguous(&camera, x, y) else {
                 continue;
             };
+            // Z is the depth along the view axis of a hit at ray parameter t.
+            let depth_of = |t: f32| t * direction.dot(camera.forward());
             let through_membrane = |membrane_t: f32, behind: Vec3| {
                 let normal = Vec3::Y;
                 let f =
                     schlick_reflectance(direction, normal, view.water.n_above, view.water.n_below);
                 let reflected = direction - 2.0 * direction.dot(normal) * normal;
+                let membrane_depth = depth_of(membrane_t);
                 assert!(
-                    (distance - membrane_t).abs() <= 1e-4 * membrane_t,
-                    "pixel ({x},{y}) Z {distance} vs {membrane_t}"
+                    (depth - membrane_depth).abs() <= 1e-4 * membrane_depth,
+                    "pixel ({x},{y}) Z {depth} vs {membrane_depth}"
                 );
-                (
-                    f,
-                    f * sky_radiance(reflected, &view.lighting) + (1.0 - f) * behind,
-                )
+                assert_eq!(matte, 1.0, "water pixel ({x},{y}) matte");
+                let sky = f * sky_radiance(reflected, &view.lighting);
+                assert!(
+                    (reflection[3] - f).abs() <= 1e-5,
+                    "pixel ({x},{y}) F {reflection:?} vs {f}"
+                );
+                for c in 0..3 {
+                    assert!(
+                        (reflection[c] - sky[c]).abs() <= 1e-4 * sky[c].max(0.05),
+                        "pixel ({x},{y}) reflection {reflection:?} vs {sky}"
+                    );
+                }
+                (f, sky + (1.0 - f) * behind)
             };
             match seen {
                 Seen::Sky => {
                     counts[0] += 1;
                     let expected = sky_radiance(direction, &view.lighting);
                     assert_colour_near("sky", x, y, beauty, expected, tolerance);
-                    assert!(
-                        position.iter().all(|c| c.is_nan()),
-                        "sky pixel ({x},{y}) position {position:?}"
-                    );
-                    assert_eq!(distance, f32::INFINITY, "sky pixel ({x},{y})");
+                    assert_eq!(position, [0.0; 3], "sky pixel ({x},{y}) position");
+                    assert_eq!(depth, SKY_DEPTH_M, "sky pixel ({x},{y})");
+                    assert_eq!(apparent, SKY_DEPTH_M, "sky pixel ({x},{y})");
+                    assert_eq!((matte, reflection), (0.0, [0.0; 4]), "sky pixel ({x},{y})");
                     assert_eq!(flags, 0);
                     assert_eq!(object, snell::draw::NO_OBJECT, "sky pixel ({x},{y})");
                 }
@@ -417,9 +436,12 @@ fn every_unambiguous_pixel_matches_the_cpu_model() {
                         "wall ({x},{y}) {position:?} vs {hit}"
                     );
                     assert!(
-                        (distance - t).abs() <= 1e-4 * t,
-                        "wall pixel ({x},{y}) Z {distance} vs {t}"
+                        (depth - depth_of(t)).abs() <= 1e-4 * t,
+                        "wall pixel ({x},{y}) Z {depth} vs {}",
+                        depth_of(t)
                     );
+                    assert_eq!(apparent, depth, "wall pixel ({x},{y}): nothing refracted");
+                    assert_eq!((matte, reflection), (0.0, [0.0; 4]), "wall pixel ({x},{y})");
                     assert_eq!(flags, 0, "wall pixel ({x},{y})");
                     // The wall is material 0: object index 0, stored as 1.
                     assert_eq!(object, 1, "wall pixel ({x},{y})");
@@ -454,6 +476,12 @@ fn every_unambiguous_pixel_matches_the_cpu_model() {
                         "floor ({x},{y}) {position:?} vs {hit}"
                     );
                     assert_eq!(flags, FLOOR_FLAGS, "floor pixel ({x},{y})");
+                    // The virtual floor is the true one here: its depth is the floor's.
+                    assert!(
+                        (apparent - depth_of(floor_t)).abs() <= 1e-4 * floor_t,
+                        "floor pixel ({x},{y}) apparent depth {apparent} vs {}",
+                        depth_of(floor_t)
+                    );
                     assert_eq!(object, 2, "floor pixel ({x},{y})");
                 }
                 Seen::DeepWater { membrane_t } => {
@@ -461,10 +489,8 @@ fn every_unambiguous_pixel_matches_the_cpu_model() {
                     let (_, expected) =
                         through_membrane(membrane_t, view.water.scatter_color_linear);
                     assert_colour_near("deep water", x, y, beauty, expected, tolerance);
-                    assert!(
-                        position.iter().all(|c| c.is_nan()),
-                        "deep water ({x},{y}) position {position:?}"
-                    );
+                    assert_eq!(position, [0.0; 3], "deep water ({x},{y}) position");
+                    assert_eq!(apparent, SKY_DEPTH_M, "deep water ({x},{y}): nothing seen");
                     assert_eq!(flags, 0, "deep water pixel ({x},{y})");
                     assert_eq!(object, snell::draw::NO_OBJECT, "deep water ({x},{y})");
                 }
@@ -508,9 +534,12 @@ fn bits(frame: &RenderedFrame) -> Vec<u32> {
     let mut out = Vec::new();
     out.extend(frame.beauty_rgba.iter().flatten().map(|v| v.to_bits()));
     out.extend(frame.position.iter().flatten().map(|v| v.to_bits()));
-    out.extend(frame.distance_m.iter().map(|v| v.to_bits()));
+    out.extend(frame.depth_m.iter().map(|v| v.to_bits()));
+    out.extend(frame.apparent_depth_m.iter().map(|v| v.to_bits()));
     out.extend(frame.flags.iter().copied());
     out.extend(frame.object.iter().copied());
+    out.extend(frame.water_matte.iter().map(|v| v.to_bits()));
+    out.extend(frame.water_reflection.iter().flatten().map(|v| v.to_bits()));
     out
 }
 

@@ -162,8 +162,8 @@ fn assert_same_frames(a: &Path, b: &Path) {
             "frame {frame}: beauty"
         );
         assert_eq!(
-            bits(&pixels_a.distance_m),
-            bits(&pixels_b.distance_m),
+            bits(&pixels_a.depth_m),
+            bits(&pixels_b.depth_m),
             "frame {frame}: Z"
         );
         assert_eq!(

@@ -370,13 +370,8 @@ fn compare_of_a_frame_with_itself_is_zero_and_bad_input_is_exit_2() {
     old.object.clear();
     let old_path = dir.path().join("old.exr");
     let old_meta = snell::output::FrameMeta {
-        scene_name: "tiny".into(),
-        frame: meta.frame,
-        time_secs: meta.time_secs,
-        camera: meta.camera,
-        method: meta.method,
-        version: meta.version,
         extra: vec![],
+        ..snell::output::FrameMeta::from_read(&meta, "tiny")
     };
     snell::output::write_frame_exr(&old_path, &old, &old_meta).unwrap();
     expect_exit(

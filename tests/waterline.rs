@@ -7,26 +7,23 @@
 
 use std::path::Path;
 
-use snell::draw::RenderedFrame;
+use snell::draw::{RenderedFrame, NO_OBJECT, SKY_DEPTH_M};
 use snell::frame::RenderJob;
 use snell::gpu::Renderer;
 
-/// Pixels that see water with nothing behind it (a distance to the membrane, no true position),
-/// and sky pixels with geometry right above and right below them (the sky through a hole).
+/// Pixels that see water with nothing behind it (the water matte, no object), and sky pixels with
+/// geometry right above and right below them (the sky through a hole).
 fn gaps(frame: &RenderedFrame) -> Vec<(u32, u32, &'static str)> {
     let (w, h) = (frame.width as usize, frame.height as usize);
     let mut found = Vec::new();
     for y in 1..h - 1 {
         for x in 0..w {
             let i = y * w + x;
-            let distance = frame.distance_m[i];
-            if distance.is_finite() && frame.position[i][0].is_nan() {
+            let sky = |i: usize| frame.depth_m[i] == SKY_DEPTH_M;
+            if frame.water_matte[i] == 1.0 && frame.object[i] == NO_OBJECT {
                 found.push((x as u32, y as u32, "water with nothing behind it"));
             }
-            if !distance.is_finite()
-                && frame.distance_m[i - w].is_finite()
-                && frame.distance_m[i + w].is_finite()
-            {
+            if sky(i) && !sky(i - w) && !sky(i + w) {
                 found.push((x as u32, y as u32, "sky through a hole"));
             }
         }
@@ -45,7 +42,7 @@ fn pool_walls_meet_the_water_without_a_gap() {
         // What the check looks for is in the frame: the sky above the deck, the floor through the
         // water.
         assert!(
-            rendered.distance_m.iter().any(|d| !d.is_finite()),
+            rendered.depth_m.contains(&SKY_DEPTH_M),
             "frame {frame}: no sky"
         );
         assert!(

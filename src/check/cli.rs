@@ -35,11 +35,12 @@ pub struct ThresholdArgs {
     /// consecutive frames (0.24); a single changed pixel leaves the p99 near 0.
     #[arg(long, value_name = "FLIP", default_value_t = defaults::FLIP_P99_FAIL)]
     pub flip_p99_fail: f32,
-    /// Tolerance on Z (distance from the eye), metres, per pixel. Sky (+inf) matches sky.
+    /// Tolerance on Z (depth along the view axis), metres, per pixel. Sky matches sky.
     /// Vulkan vs GL renders agree to 1.1e-5 m.
     #[arg(long = "z-tolerance", value_name = "M", default_value_t = defaults::DEPTH_TOLERANCE_M)]
     pub depth_tolerance_m: f32,
-    /// Tolerance on P (true world position), metres (Euclidean), per pixel. NaN matches NaN.
+    /// Tolerance on P (true world position), metres (Euclidean), per pixel. Pixels seeing no
+    /// object on both sides match.
     #[arg(long = "p-tolerance", value_name = "M", default_value_t = defaults::POSITION_TOLERANCE_M)]
     pub position_tolerance_m: f32,
     /// Fraction of the pixels whose Z or P may be off by more than the tolerance before a frame

@@ -458,14 +458,10 @@ pub fn compare_frames(
     }
     let flip = flip_ldr(&tonemap_srgb8(r, 0.0), &tonemap_srgb8(t, 0.0))
         .expect("sizes were checked equal above");
-    let depth = layer_difference(
-        r.distance_m.iter().map(|&d| [d]),
-        t.distance_m.iter().map(|&d| [d]),
-        thresholds.depth_tolerance_m,
-    );
+    let depth = layer_difference(seen_depths(r), seen_depths(t), thresholds.depth_tolerance_m);
     let position = layer_difference(
-        r.position.iter().copied(),
-        t.position.iter().copied(),
+        seen_positions(r),
+        seen_positions(t),
         thresholds.position_tolerance_m,
     );
     let mut judge = |name: &str, value: f64, warn: f64, fail: f64, shown: String| {
@@ -524,11 +520,12 @@ pub fn compare_frames(
 }
 
 /// Per-pixel difference of a layer of `N` components: Euclidean distance against `tolerance_m`.
-/// Sky and empty water are `+inf` (Z) or NaN (P) on purpose, so a pixel whose both values are the
-/// same non-finite value agrees, and a pixel finite on one side only always exceeds.
+/// `None` is a pixel that sees nothing (sky, water with nothing behind it: the channel map's
+/// values there are not positions): two such pixels agree, and a pixel seeing something on one
+/// side only always exceeds. A non-finite value agrees only with the same value.
 fn layer_difference<const N: usize>(
-    reference: impl Iterator<Item = [f32; N]>,
-    test: impl Iterator<Item = [f32; N]>,
+    reference: impl Iterator<Item = Option<[f32; N]>>,
+    test: impl Iterator<Item = Option<[f32; N]>>,
     tolerance_m: f32,
 ) -> LayerDifference {
     let mut result = LayerDifference {
@@ -538,6 +535,14 @@ fn layer_difference<const N: usize>(
     };
     for (a, b) in reference.zip(test) {
         result.pixels += 1;
+        let (a, b) = match (a, b) {
+            (None, None) => continue,
+            (Some(a), Some(b)) => (a, b),
+            _ => {
+                result.exceeding_pixels += 1;
+                continue;
+            }
+        };
         let finite = a.iter().chain(&b).all(|c| c.is_finite());
         if finite {
             let distance = a
@@ -561,6 +566,26 @@ fn layer_difference<const N: usize>(
         }
     }
     result
+}
+
+/// A frame's `Z` per pixel, `None` where it sees nothing.
+fn seen_depths(frame: &RenderedFrame) -> impl Iterator<Item = Option<[f32; 1]>> + '_ {
+    frame
+        .depth_m
+        .iter()
+        .map(|&d| (d < crate::draw::SKY_DEPTH_M).then_some([d]))
+}
+
+/// A frame's `P` per pixel, `None` where it sees no object (by its object layer; frames without
+/// one: where `P` is 0 or not finite).
+fn seen_positions(frame: &RenderedFrame) -> impl Iterator<Item = Option<[f32; 3]>> + '_ {
+    frame.position.iter().enumerate().map(|(i, &p)| {
+        let seen = match frame.object.get(i) {
+            Some(&object) => object != crate::draw::NO_OBJECT,
+            None => p != [0.0; 3] && p.iter().all(|c| c.is_finite()),
+        };
+        seen.then_some(p)
+    })
 }
 
 fn compare_counts(
@@ -795,20 +820,27 @@ mod tests {
                     [x, 0.3, 1.0 - x, 1.0]
                 })
                 .collect(),
-            distance_m: (0..pixels)
-                .map(|i| if i % 7 == 0 { f32::INFINITY } else { 5.0 })
+            depth_m: (0..pixels)
+                .map(|i| {
+                    if i % 7 == 0 {
+                        crate::draw::SKY_DEPTH_M
+                    } else {
+                        5.0
+                    }
+                })
                 .collect(),
             position: (0..pixels)
                 .map(|i| {
                     if i % 7 == 0 {
-                        [f32::NAN; 3]
+                        [0.0; 3]
                     } else {
                         [1.0, -0.5, i as f32 * 0.01]
                     }
                 })
                 .collect(),
             flags: vec![0; pixels],
-            object: vec![1; pixels],
+            object: (0..pixels).map(|i| u32::from(i % 7 != 0)).collect(),
+            ..Default::default()
         }
     }
 
@@ -830,22 +862,49 @@ mod tests {
         assert_eq!(metrics.depth.exceeding_pixels, 0);
         assert_eq!(
             metrics.position.exceeding_pixels, 0,
-            "NaN = NaN for sky pixels"
+            "sky pixels agree: both see nothing"
         );
         assert_eq!(counts, CountsComparison::Equal);
         assert!(findings.is_empty(), "{findings:?}");
     }
 
     #[test]
-    fn finite_on_one_side_only_exceeds_and_infinite_difference_is_not_the_max() {
+    fn seen_on_one_side_only_exceeds_and_is_not_the_max() {
         let layer = layer_difference(
-            [[f32::INFINITY], [5.0], [f32::NAN], [1.0]].into_iter(),
-            [[f32::INFINITY], [f32::INFINITY], [f32::NAN], [1.5]].into_iter(),
+            [
+                None,
+                Some([5.0]),
+                Some([f32::NAN]),
+                Some([1.0]),
+                Some([2.0]),
+            ]
+            .into_iter(),
+            [
+                None,
+                None,
+                Some([f32::NAN]),
+                Some([1.5]),
+                Some([f32::INFINITY]),
+            ]
+            .into_iter(),
             0.1,
         );
-        assert_eq!(layer.exceeding_pixels, 2);
-        assert_eq!(layer.pixels, 4);
+        assert_eq!(layer.exceeding_pixels, 3);
+        assert_eq!(layer.pixels, 5);
         assert_eq!(layer.max_finite_difference_m, 0.5);
+        // Sky as the channel map writes it is "nothing seen", whatever its depth value.
+        let mut a = frame(4, 4);
+        let mut b = a.clone();
+        a.depth_m[0] = crate::draw::SKY_DEPTH_M;
+        b.depth_m[0] = 3.0;
+        b.object[0] = 1;
+        b.position[0] = [0.0, 0.0, 3.0];
+        let depth = layer_difference(seen_depths(&a), seen_depths(&b), 0.001);
+        assert_eq!(depth.exceeding_pixels, 1);
+        assert!(
+            depth.max_finite_difference_m < 1.0,
+            "no 1e10 m difference is reported"
+        );
     }
 
     #[test]

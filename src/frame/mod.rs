@@ -302,6 +302,9 @@ pub struct RenderJob {
     /// Set when the scene's `max_error_px` chose the method and membrane resolution
     /// ([`crate::chart::budget::apply_budget`]); reported in EXR headers and report rows.
     pub quality_choice: Option<crate::chart::budget::QualityChoice>,
+    /// The EXR header's `owner` and `capDate`; none by default, so frames are byte-identical
+    /// run to run (the CLI sets them from `--owner` and `SOURCE_DATE_EPOCH`).
+    pub stamp: HeaderStamp,
     /// Heights the refraction search must cover for the static objects (characters and ripples
     /// widen it per frame).
     query_y_range: (f32, f32),
@@ -310,6 +313,14 @@ pub struct RenderJob {
     /// The scene file and every file it references, hashed once at load (frames' input hash,
     /// simulation checkpoint key).
     scene_files: inputs::SceneFilesDigest,
+}
+
+/// Who made a frame and when, for the EXR header (`owner`, `capDate`).
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct HeaderStamp {
+    pub owner: Option<String>,
+    /// A Unix time, normally `SOURCE_DATE_EPOCH`'s.
+    pub capture_unix_secs: Option<i64>,
 }
 
 /// What a finished render reports to the CLI.
@@ -351,6 +362,7 @@ impl RenderJob {
             method: Method::default(),
             subdivision: SubdivisionSettings::default(),
             quality_choice: None,
+            stamp: HeaderStamp::default(),
             query_y_range: (bottom, top),
             traced_textures: std::sync::OnceLock::new(),
             scene_files,
@@ -397,6 +409,34 @@ impl RenderJob {
 
     pub fn scene_name(&self) -> &str {
         &self.scene.name
+    }
+
+    /// The name of each scene object id ([`RenderedFrame::object`]): id `k + 1` is
+    /// `object_names()[k]`. Static objects in scene order (each part of a pool on its own), then
+    /// one id per character, whatever the number of its glTF primitives.
+    pub fn object_names(&self) -> Vec<String> {
+        self.objects
+            .iter()
+            .map(|object| object.name.clone())
+            .chain(
+                self.dynamics
+                    .characters
+                    .iter()
+                    .map(|character| character.spec.name.clone()),
+            )
+            .collect()
+    }
+
+    /// The scene object id of each of a frame's objects (materials): the static objects, then
+    /// every posed primitive of each character in turn, which all get their character's id.
+    fn object_ids(&self) -> Vec<u32> {
+        let statics = self.objects.len() as u32;
+        let mut ids: Vec<u32> = (1..=statics).collect();
+        for (index, character) in self.dynamics.characters.iter().enumerate() {
+            let primitives = character.asset.stored_primitives().len();
+            ids.extend(std::iter::repeat_n(statics + 1 + index as u32, primitives));
+        }
+        ids
     }
 
     pub fn timeline(&self) -> &Timeline {
@@ -600,6 +640,21 @@ impl RenderJob {
             })?;
             renderer.render(&refracted.draw, &refracted.view, width, height)?
         };
+        let mut rendered = rendered;
+        // The GPU and the tracer give the frame's object (material) index + 1.
+        let ids = self.object_ids();
+        for object in &mut rendered.object {
+            if *object != crate::draw::NO_OBJECT {
+                *object = ids.get(*object as usize - 1).copied().ok_or_else(|| {
+                    SnellError::Argument(format!(
+                        "frame {}: object index {} is not one of the {} objects drawn",
+                        refracted.frame,
+                        *object - 1,
+                        ids.len()
+                    ))
+                })?;
+            }
+        }
         refracted
             .stage_secs
             .insert("render".to_string(), clock.elapsed().as_secs_f64());
@@ -661,6 +716,10 @@ impl RenderJob {
             camera: refracted.camera,
             method: self.method_label().to_string(),
             version: crate::VERSION.to_string(),
+            fps: self.scene.timeline.fps,
+            object_names: self.object_names(),
+            owner: self.stamp.owner.clone(),
+            capture_unix_secs: self.stamp.capture_unix_secs,
             extra: vec![
                 (
                     "convergencePolicy".to_string(),

@@ -27,6 +27,8 @@ pub(crate) const FLAGS_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Uin
 /// (float32 targets are not renderable on GL/llvmpipe; the bits blend exactly as the fragment
 /// stage's own float32 output would).
 pub(crate) const REFLECTION_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Uint;
+/// Float32 bits of the apparent depth (w); xyz reserved.
+pub(crate) const EXTRA_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Uint;
 
 fn instance() -> wgpu::Instance {
     wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env())
@@ -111,9 +113,10 @@ impl GpuContext {
         let mut required_limits = wgpu::Limits::default().using_resolution(adapter.limits());
 
         // Float32 blending is a device feature: without it a float32 target cannot take pass d's
-        // blend. Beauty (16 or 8) + position (16) + flags (4) + reflection (16) bytes per sample
-        // exceed the default limit of 32, so the adapter must allow more (Mesa's drivers: 128).
-        let bytes_per_sample = |beauty_bytes: u32| beauty_bytes + 16 + 4 + 16;
+        // blend. Beauty (16 or 8) + position (16) + flags (4) + reflection (16) + extra (16) bytes
+        // per sample exceed the default limit of 32, so the adapter must allow more (Mesa's
+        // drivers: 128).
+        let bytes_per_sample = |beauty_bytes: u32| beauty_bytes + 16 + 4 + 16 + 16;
         let allowed_bytes_per_sample = adapter.limits().max_color_attachment_bytes_per_sample;
         let beauty = if available.contains(wgpu::Features::FLOAT32_BLENDABLE)
             && renders_and_blends(&adapter, wgpu::TextureFormat::Rgba32Float)

@@ -23,6 +23,7 @@
 //! its fragment stage, so keeping the reflection from the one draw is cheaper (same pixels).
 
 mod device;
+mod readback;
 pub mod shaders;
 pub mod shading;
 pub(crate) mod textures;
@@ -33,7 +34,8 @@ use crate::draw::{FrameDraw, FrameView, MembraneVertex, RenderedFrame, TrueVerte
 use crate::mesh::Texture;
 
 pub use device::probe_adapter;
-use device::{GpuContext, FLAGS_FORMAT, POSITION_FORMAT, REFLECTION_FORMAT};
+use device::{GpuContext, EXTRA_FORMAT, FLAGS_FORMAT, POSITION_FORMAT, REFLECTION_FORMAT};
+use readback::{read_back, FrameTargets};
 
 /// Most materials one frame can use: the uniform array in `shaders/common.inc.wgsl` (16 bytes
 /// each; 16 KiB is the uniform binding size every backend guarantees).
@@ -114,6 +116,7 @@ struct FrameUniform {
     scatter_color: [f32; 4],
     sun_in_water: [f32; 4],
     water: [f32; 4],
+    view_forward: [f32; 4],
 }
 
 fn vec4(v: Vec3, w: f32) -> [f32; 4] {
@@ -146,6 +149,7 @@ impl FrameUniform {
                 None => [0.0, 1.0, 0.0, 0.0],
             },
             water: [water.n_above, water.n_below, water.mean_level_m, 0.0],
+            view_forward: vec4(view.camera.forward(), 0.0),
         }
     }
 }
@@ -188,160 +192,6 @@ impl GrowingBuffer {
     }
 }
 
-/// Row pitch of a texture copy: `COPY_BYTES_PER_ROW_ALIGNMENT` (256) aligned.
-fn padded_bytes_per_row(width: u32, bytes_per_pixel: u32) -> u32 {
-    let unpadded = width * bytes_per_pixel;
-    unpadded.div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT
-}
-
-/// The attachments of one frame size and the buffer they are read back through.
-struct FrameTargets {
-    width: u32,
-    height: u32,
-    beauty: wgpu::Texture,
-    position: wgpu::Texture,
-    flags: wgpu::Texture,
-    beauty_view: wgpu::TextureView,
-    position_view: wgpu::TextureView,
-    flags_view: wgpu::TextureView,
-    reflection_view: wgpu::TextureView,
-    /// Binds the reflection target for pass d, which reads it.
-    reflection_bind_group: wgpu::BindGroup,
-    depth_stencil_view: wgpu::TextureView,
-    beauty_bytes_per_pixel: u32,
-    readback: wgpu::Buffer,
-    /// Byte offsets of the beauty, position and flags images in `readback`.
-    readback_offsets: [u64; 3],
-}
-
-impl FrameTargets {
-    fn new(
-        context: &GpuContext,
-        reflection_layout: &wgpu::BindGroupLayout,
-        width: u32,
-        height: u32,
-    ) -> FrameTargets {
-        let device = &context.device;
-        let size = wgpu::Extent3d {
-            width,
-            height,
-            depth_or_array_layers: 1,
-        };
-        let target = |label: &str, format: wgpu::TextureFormat, usage: wgpu::TextureUsages| {
-            device.create_texture(&wgpu::TextureDescriptor {
-                label: Some(label),
-                size,
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format,
-                usage,
-                view_formats: &[],
-            })
-        };
-        let colour_usage = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC;
-        let beauty = target("beauty", context.formats.beauty, colour_usage);
-        let position = target("position", POSITION_FORMAT, colour_usage);
-        let flags = target("flags", FLAGS_FORMAT, colour_usage);
-        let reflection = target(
-            "membrane reflection",
-            REFLECTION_FORMAT,
-            wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
-        );
-        let depth_stencil = target(
-            "depth-stencil",
-            context.formats.depth_stencil,
-            wgpu::TextureUsages::RENDER_ATTACHMENT,
-        );
-        let beauty_bytes_per_pixel = context.formats.beauty.block_copy_size(None).unwrap_or(16);
-
-        let beauty_bytes =
-            padded_bytes_per_row(width, beauty_bytes_per_pixel) as u64 * height as u64;
-        let position_bytes = padded_bytes_per_row(width, 16) as u64 * height as u64;
-        let flags_bytes = padded_bytes_per_row(width, 4) as u64 * height as u64;
-        // Every region starts on a padded row, so the offsets keep the 256-byte alignment.
-        let readback_offsets = [0, beauty_bytes, beauty_bytes + position_bytes];
-        let readback = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("readback"),
-            size: beauty_bytes + position_bytes + flags_bytes,
-            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-            mapped_at_creation: false,
-        });
-        let view =
-            |texture: &wgpu::Texture| texture.create_view(&wgpu::TextureViewDescriptor::default());
-        let reflection_view = view(&reflection);
-        let reflection_bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("membrane reflection"),
-            layout: reflection_layout,
-            entries: &[wgpu::BindGroupEntry {
-                binding: 0,
-                resource: wgpu::BindingResource::TextureView(&reflection_view),
-            }],
-        });
-        FrameTargets {
-            width,
-            height,
-            beauty_view: view(&beauty),
-            position_view: view(&position),
-            flags_view: view(&flags),
-            reflection_view,
-            reflection_bind_group,
-            depth_stencil_view: view(&depth_stencil),
-            beauty,
-            position,
-            flags,
-            beauty_bytes_per_pixel,
-            readback,
-            readback_offsets,
-        }
-    }
-
-    fn copy_to_readback(&self, encoder: &mut wgpu::CommandEncoder) {
-        let size = wgpu::Extent3d {
-            width: self.width,
-            height: self.height,
-            depth_or_array_layers: 1,
-        };
-        let images = [
-            (&self.beauty, self.beauty_bytes_per_pixel),
-            (&self.position, 16),
-            (&self.flags, 4),
-        ];
-        for ((texture, bytes_per_pixel), offset) in images.into_iter().zip(self.readback_offsets) {
-            encoder.copy_texture_to_buffer(
-                wgpu::TexelCopyTextureInfo {
-                    texture,
-                    mip_level: 0,
-                    origin: wgpu::Origin3d::ZERO,
-                    aspect: wgpu::TextureAspect::All,
-                },
-                wgpu::TexelCopyBufferInfo {
-                    buffer: &self.readback,
-                    layout: wgpu::TexelCopyBufferLayout {
-                        offset,
-                        bytes_per_row: Some(padded_bytes_per_row(self.width, bytes_per_pixel)),
-                        rows_per_image: Some(self.height),
-                    },
-                },
-                size,
-            );
-        }
-    }
-}
-
-/// Converts an IEEE half-float to f32 exactly (every half is representable in f32).
-fn f16_bits_to_f32(bits: u16) -> f32 {
-    let sign = if bits & 0x8000 != 0 { -1.0f32 } else { 1.0 };
-    let exponent = (bits >> 10) & 0x1f;
-    let mantissa = (bits & 0x3ff) as f32;
-    match exponent {
-        0 => sign * mantissa * (2.0f32).powi(-24),
-        0x1f if mantissa == 0.0 => sign * f32::INFINITY,
-        0x1f => f32::NAN,
-        _ => sign * (1.0 + mantissa / 1024.0) * (2.0f32).powi(exponent as i32 - 15),
-    }
-}
-
 /// The pipelines of the six draws, in drawing order.
 struct Pipelines {
     sky: wgpu::RenderPipeline,
@@ -359,7 +209,8 @@ struct Writes {
     beauty_blend: Option<wgpu::BlendState>,
     position: wgpu::ColorWrites,
     flags: wgpu::ColorWrites,
-    reflection: Option<wgpu::ColorWrites>,
+    /// The main pass's membrane reflection and extra targets; `None` in pass d, which has neither.
+    reflection_and_extra: Option<(wgpu::ColorWrites, wgpu::ColorWrites)>,
 }
 
 const ALL_WRITES: Writes = Writes {
@@ -367,7 +218,7 @@ const ALL_WRITES: Writes = Writes {
     beauty_blend: None,
     position: wgpu::ColorWrites::ALL,
     flags: wgpu::ColorWrites::ALL,
-    reflection: Some(wgpu::ColorWrites::empty()),
+    reflection_and_extra: Some((wgpu::ColorWrites::empty(), wgpu::ColorWrites::ALL)),
 };
 /// Inside the stencil: the position's w (distance) is the membrane's, written by pass b.
 const UNDER_WATER_WRITES: Writes = Writes {
@@ -375,7 +226,7 @@ const UNDER_WATER_WRITES: Writes = Writes {
     beauty_blend: None,
     position: wgpu::ColorWrites::COLOR,
     flags: wgpu::ColorWrites::ALL,
-    reflection: Some(wgpu::ColorWrites::empty()),
+    reflection_and_extra: Some((wgpu::ColorWrites::empty(), wgpu::ColorWrites::ALL)),
 };
 
 /// Depth and stencil behaviour of a draw.
@@ -410,7 +261,7 @@ impl PipelineFactory<'_> {
         writes: Writes,
         depth_stencil: DepthStencil,
     ) -> wgpu::RenderPipeline {
-        let layout = match writes.reflection {
+        let layout = match writes.reflection_and_extra {
             Some(_) => &self.layout,
             None => &self.reflection_layout,
         };
@@ -469,12 +320,25 @@ impl PipelineFactory<'_> {
                             blend: None,
                             write_mask: writes.flags,
                         }),
-                        writes.reflection.map(|write_mask| wgpu::ColorTargetState {
-                            format: REFLECTION_FORMAT,
-                            blend: None,
-                            write_mask,
-                        }),
-                    ][..if writes.reflection.is_some() { 4 } else { 3 }],
+                        writes
+                            .reflection_and_extra
+                            .map(|(write_mask, _)| wgpu::ColorTargetState {
+                                format: REFLECTION_FORMAT,
+                                blend: None,
+                                write_mask,
+                            }),
+                        writes
+                            .reflection_and_extra
+                            .map(|(_, write_mask)| wgpu::ColorTargetState {
+                                format: EXTRA_FORMAT,
+                                blend: None,
+                                write_mask,
+                            }),
+                    ][..if writes.reflection_and_extra.is_some() {
+                        5
+                    } else {
+                        3
+                    }],
                 }),
                 multiview_mask: None,
                 cache: None,
@@ -598,7 +462,7 @@ fn create_pipelines(
                 beauty_blend: None,
                 position: wgpu::ColorWrites::ALPHA,
                 flags: wgpu::ColorWrites::empty(),
-                reflection: Some(wgpu::ColorWrites::ALL),
+                reflection_and_extra: Some((wgpu::ColorWrites::ALL, wgpu::ColorWrites::empty())),
             },
             DepthStencil {
                 depth_write: true,
@@ -639,7 +503,7 @@ fn create_pipelines(
                 }),
                 position: wgpu::ColorWrites::empty(),
                 flags: wgpu::ColorWrites::empty(),
-                reflection: None,
+                reflection_and_extra: None,
             },
             inside_stencil(false, Always),
         ),
@@ -1085,6 +949,7 @@ impl Renderer {
                 colour(&targets.flags_view),
                 // Only read inside the stencil, where pass b always writes it: no clear needed.
                 colour_attachment(&targets.reflection_view, wgpu::LoadOp::Load),
+                colour(&targets.extra_view),
             ],
             depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
                 view: &targets.depth_stencil_view,
@@ -1187,137 +1052,13 @@ fn colour_attachment(
     })
 }
 
-fn read_back(device: &wgpu::Device, targets: &FrameTargets) -> Result<RenderedFrame, GpuError> {
-    let slice = targets.readback.slice(..);
-    let (sender, receiver) = std::sync::mpsc::channel();
-    slice.map_async(wgpu::MapMode::Read, move |result| {
-        // The receiver outlives the poll below; a failed send only means nobody is waiting.
-        let _ = sender.send(result);
-    });
-    device.poll(wgpu::PollType::wait_indefinitely())?;
-    receiver
-        .recv()
-        .map_err(|_| GpuError::Readback("the map callback never ran".to_string()))?
-        .map_err(|error| GpuError::Readback(error.to_string()))?;
-    let mapped = std::time::Instant::now();
-    let frame = {
-        let bytes = slice
-            .get_mapped_range()
-            .map_err(|error| GpuError::Readback(error.to_string()))?;
-        unpack_frame(&bytes, targets)
-    };
-    targets.readback.unmap();
-    log::debug!(
-        "readback: unpacking {:.1} ms",
-        mapped.elapsed().as_secs_f64() * 1e3
-    );
-    Ok(frame)
-}
-
-fn word(bytes: &[u8], at: usize) -> u32 {
-    u32::from_le_bytes([bytes[at], bytes[at + 1], bytes[at + 2], bytes[at + 3]])
-}
-
-/// The flags target holds the flag bits below this bit and the object index + 1 above it
-/// (`flags_and_object` in shaders/common.inc.wgsl).
-const OBJECT_SHIFT: u32 = 8;
-
-/// Removes the row padding and converts every layer to the CPU types of [`RenderedFrame`].
-/// Rows are converted in parallel (rayon) straight into preallocated layers: done on one thread
-/// with a push per value, this was ~6.7 ms of a ~60 ms 1280x720 pool frame on the 2-core machine,
-/// run while the rasteriser's threads sit idle.
-fn unpack_frame(bytes: &[u8], targets: &FrameTargets) -> RenderedFrame {
-    use rayon::prelude::*;
-    let (width, height) = (targets.width as usize, targets.height as usize);
-    let pixel_count = width * height;
-    let mut frame = RenderedFrame {
-        width: targets.width,
-        height: targets.height,
-        beauty_rgba: vec![[0.0; 4]; pixel_count],
-        distance_m: vec![0.0; pixel_count],
-        position: vec![[0.0; 3]; pixel_count],
-        flags: vec![0; pixel_count],
-        object: vec![0; pixel_count],
-    };
-    let beauty_pitch = padded_bytes_per_row(targets.width, targets.beauty_bytes_per_pixel) as usize;
-    let position_pitch = padded_bytes_per_row(targets.width, 16) as usize;
-    let flags_pitch = padded_bytes_per_row(targets.width, 4) as usize;
-    let [beauty_at, position_at, flags_at] = targets.readback_offsets.map(|offset| offset as usize);
-    let beauty_bytes_per_pixel = targets.beauty_bytes_per_pixel as usize;
-    frame
-        .beauty_rgba
-        .par_chunks_mut(width)
-        .zip(frame.position.par_chunks_mut(width))
-        .zip(frame.distance_m.par_chunks_mut(width))
-        .zip(frame.flags.par_chunks_mut(width))
-        .zip(frame.object.par_chunks_mut(width))
-        .enumerate()
-        .for_each(|(y, ((((beauty, position), distance), flags), object))| {
-            let row = &bytes[beauty_at + y * beauty_pitch..][..width * beauty_bytes_per_pixel];
-            if beauty_bytes_per_pixel == 8 {
-                for (out, pixel) in beauty.iter_mut().zip(row.chunks_exact(8)) {
-                    *out = std::array::from_fn(|c| {
-                        f16_bits_to_f32(u16::from_le_bytes([pixel[2 * c], pixel[2 * c + 1]]))
-                    });
-                }
-            } else {
-                for (out, pixel) in beauty.iter_mut().zip(row.chunks_exact(16)) {
-                    *out = std::array::from_fn(|c| f32::from_bits(word(pixel, 4 * c)));
-                }
-            }
-            let row = &bytes[position_at + y * position_pitch..][..width * 16];
-            for ((out, distance), pixel) in position
-                .iter_mut()
-                .zip(distance.iter_mut())
-                .zip(row.chunks_exact(16))
-            {
-                *out = std::array::from_fn(|c| f32::from_bits(word(pixel, 4 * c)));
-                *distance = f32::from_bits(word(pixel, 12));
-            }
-            let row = &bytes[flags_at + y * flags_pitch..][..width * 4];
-            for ((flag, object), pixel) in flags
-                .iter_mut()
-                .zip(object.iter_mut())
-                .zip(row.chunks_exact(4))
-            {
-                let packed = word(pixel, 0);
-                *flag = packed & ((1 << OBJECT_SHIFT) - 1);
-                *object = packed >> OBJECT_SHIFT;
-            }
-        });
-    frame
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
 
     #[test]
-    // 0.333251953125 is the exact value of half 0x3555; the shorter literal clippy wants hides that.
-    #[allow(clippy::excessive_precision)]
-    fn half_floats_convert_exactly() {
-        assert_eq!(f16_bits_to_f32(0x3c00), 1.0);
-        assert_eq!(f16_bits_to_f32(0xc000), -2.0);
-        assert_eq!(f16_bits_to_f32(0x7bff), 65504.0);
-        assert_eq!(f16_bits_to_f32(0x0001), 2.0f32.powi(-24));
-        assert_eq!(f16_bits_to_f32(0x3555), 0.333251953125);
-        assert_eq!(f16_bits_to_f32(0x7c00), f32::INFINITY);
-        assert_eq!(f16_bits_to_f32(0xfc00), f32::NEG_INFINITY);
-        assert!(f16_bits_to_f32(0x7e00).is_nan());
-        assert_eq!(f16_bits_to_f32(0x0000), 0.0);
-    }
-
-    #[test]
-    fn row_pitch_is_256_aligned() {
-        assert_eq!(padded_bytes_per_row(1, 4), 256);
-        assert_eq!(padded_bytes_per_row(64, 4), 256);
-        assert_eq!(padded_bytes_per_row(65, 4), 512);
-        assert_eq!(padded_bytes_per_row(1280, 16), 1280 * 16);
-    }
-
-    #[test]
     fn frame_uniform_matches_the_wgsl_struct_size() {
-        // 2 mat4x4 + 11 vec4 in shaders/common.inc.wgsl.
-        assert_eq!(std::mem::size_of::<FrameUniform>(), 2 * 64 + 11 * 16);
+        // 2 mat4x4 + 12 vec4 in shaders/common.inc.wgsl.
+        assert_eq!(std::mem::size_of::<FrameUniform>(), 2 * 64 + 12 * 16);
     }
 }

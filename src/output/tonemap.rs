@@ -112,10 +112,11 @@ mod tests {
             width: values.len() as u32,
             height: 1,
             beauty_rgba: values.iter().map(|&v| [v, v, v, 1.0]).collect(),
-            distance_m: vec![1.0; values.len()],
+            depth_m: vec![1.0; values.len()],
             position: vec![[0.0; 3]; values.len()],
             flags: vec![0; values.len()],
             object: vec![0; values.len()],
+            ..Default::default()
         }
     }
 

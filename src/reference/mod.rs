@@ -14,9 +14,12 @@
 //! deep-water colour, as the rasteriser's stencil clear does. Every formula of the shading model
 //! is [`crate::gpu::shading`]'s, the one the shaders mirror.
 //!
-//! Layers: `distance_m` to the first surface met (the water for refracted pixels), `position` the
-//! true point seen (the under-water point for refracted pixels, NaN for sky and for water with
-//! nothing behind), `flags` all 0: the reference has no virtual geometry to flag.
+//! Layers: the depth along the view axis of the first surface met (the water for refracted
+//! pixels), the apparent depth (for refracted pixels the virtual image `E + d (|S - E| + eta
+//! |V - S|)`, as the rasteriser places it), `position` the true point seen (the under-water point
+//! for refracted pixels, 0 for sky and for water with nothing behind), the water matte and
+//! reflection, `flags` all 0: the reference has no virtual geometry to flag. Where nothing is
+//! seen each layer holds what the EXR channel map states ([`crate::draw::SKY_DEPTH_M`]).
 //!
 //! Textures ([`texture`]): the GPU's array and mip chain, trilinear, at the level the GPU's
 //! derivatives would pick, estimated per hit as log2 of (footprint of the pixel at the hit,
@@ -37,7 +40,7 @@ use glam::{Vec2, Vec3, Vec4};
 use rayon::prelude::*;
 
 use crate::camera::{Camera, FAR_M, NEAR_M};
-use crate::draw::{DrawMaterial, FrameView, RenderedFrame};
+use crate::draw::{DrawMaterial, FrameView, RenderedFrame, SKY_DEPTH_M};
 use crate::gpu::shading;
 use crate::mesh::Object;
 use crate::water::Membrane;
@@ -100,7 +103,15 @@ pub struct TraceStats {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PixelSample {
     pub beauty: Vec3,
+    /// Distance along the ray to the first surface met; +inf for sky.
     pub distance_m: f32,
+    /// Depth along the view axis of the first surface met; [`SKY_DEPTH_M`] for sky.
+    pub depth_m: f32,
+    /// Depth along the view axis of what the pixel shows (the virtual image through water).
+    pub apparent_depth_m: f32,
+    /// Where the first surface is the water: (F * sky reflected, F).
+    pub water_reflection: Option<Vec4>,
+    /// The true point seen; NaN for sky and for water with nothing behind it (the frame holds 0).
     pub position: Vec3,
     /// 0 = no object (sky, water with nothing behind); k + 1 = object k.
     pub object: u32,
@@ -158,7 +169,7 @@ impl<'a> Tracer<'a> {
             owners,
             membrane_surface,
             camera,
-            forward: (camera.target - camera.eye).normalize(),
+            forward: camera.forward(),
             pixel_angle: 2.0 * (camera.fov_y_deg.to_radians() * 0.5).tan() / height.max(1) as f32,
             texture_size: Vec2::new(tw as f32, th as f32),
             eta: scene.view.water.n_above / scene.view.water.n_below,
@@ -199,9 +210,13 @@ impl<'a> Tracer<'a> {
                 let footprint_m = hit.t * self.pixel_angle * depth_per_t;
                 let cos = direction.dot(point.geometric_normal).abs();
                 let albedo = self.albedo(&point, footprint_m, cos);
+                let depth_m = self.camera.view_depth(point.position);
                 PixelSample {
                     beauty: shading::shade_above(albedo, point.normal, lighting),
                     distance_m: (point.position - eye).length(),
+                    depth_m,
+                    apparent_depth_m: depth_m,
+                    water_reflection: None,
                     position: point.position,
                     object: point.object + 1,
                     refracted: false,
@@ -212,6 +227,9 @@ impl<'a> Tracer<'a> {
             (None, None) => PixelSample {
                 beauty: shading::sky_radiance(direction, lighting),
                 distance_m: f32::INFINITY,
+                depth_m: SKY_DEPTH_M,
+                apparent_depth_m: SKY_DEPTH_M,
+                water_reflection: None,
                 position: Vec3::NAN,
                 object: 0,
                 refracted: false,
@@ -247,7 +265,7 @@ impl<'a> Tracer<'a> {
                 .contains(point.position.as_dvec3(), IN_WATER_SLACK_M)
                 .then_some((hit, point))
         });
-        let (under, position, object) = match seen {
+        let (under, position, object, apparent_depth_m) = match seen {
             Some((hit, point)) => {
                 let water_path_m = (point.position - sight_point).length();
                 let apparent_m = surface_distance_m + self.eta * water_path_m;
@@ -266,13 +284,17 @@ impl<'a> Tracer<'a> {
                     ),
                     point.position,
                     point.object + 1,
+                    apparent_m * depth_per_t,
                 )
             }
-            None => (water.scatter_color_linear, Vec3::NAN, 0),
+            None => (water.scatter_color_linear, Vec3::NAN, 0, SKY_DEPTH_M),
         };
         PixelSample {
             beauty: reflectance * sky + (1.0 - reflectance) * under,
             distance_m: surface_distance_m,
+            depth_m: self.camera.view_depth(sight_point),
+            apparent_depth_m,
+            water_reflection: Some(Vec4::from((reflectance * sky, reflectance))),
             position,
             object,
             refracted: true,
@@ -333,47 +355,52 @@ pub fn trace_frame(scene: &TraceScene, width: u32, height: u32) -> TracedFrame {
     let build_secs = started.elapsed().as_secs_f64();
     let rays = scene.view.camera.pixel_rays(width, height);
     let pixels = (width * height) as usize;
-    let mut frame = RenderedFrame {
+    let mut samples: Vec<PixelSample> = Vec::with_capacity(pixels);
+    let tile = (width * ROWS_PER_TILE) as usize;
+    (0..pixels)
+        .into_par_iter()
+        .with_min_len(tile)
+        .map(|at| {
+            let (x, y) = (at as u32 % width, at as u32 / width);
+            tracer.trace(rays.direction(Vec2::new(x as f32 + 0.5, y as f32 + 0.5)))
+        })
+        .collect_into_vec(&mut samples);
+    let counts = samples
+        .iter()
+        .fold((0u64, 0u64), |(refracted, evaluations), sample| {
+            (
+                refracted + u64::from(sample.refracted),
+                evaluations + sample.surface_evaluations as u64,
+            )
+        });
+    let seen = |sample: &PixelSample, value: Vec3| {
+        if sample.object == 0 {
+            [0.0; 3]
+        } else {
+            value.to_array()
+        }
+    };
+    let frame = RenderedFrame {
         width,
         height,
-        beauty_rgba: vec![[0.0; 4]; pixels],
-        distance_m: vec![0.0; pixels],
-        position: vec![[0.0; 3]; pixels],
+        beauty_rgba: samples
+            .iter()
+            .map(|s| Vec4::from((s.beauty, 1.0)).to_array())
+            .collect(),
+        depth_m: samples.iter().map(|s| s.depth_m).collect(),
+        apparent_depth_m: samples.iter().map(|s| s.apparent_depth_m).collect(),
+        position: samples.iter().map(|s| seen(s, s.position)).collect(),
         flags: vec![0; pixels],
-        object: vec![0; pixels],
+        object: samples.iter().map(|s| s.object).collect(),
+        water_matte: samples
+            .iter()
+            .map(|s| f32::from(u8::from(s.water_reflection.is_some())))
+            .collect(),
+        water_reflection: samples
+            .iter()
+            .map(|s| s.water_reflection.unwrap_or(Vec4::ZERO).to_array())
+            .collect(),
     };
-    let mut objects = std::mem::take(&mut frame.object);
-    let tile = (width * ROWS_PER_TILE) as usize;
-    let counts: (u64, u64) = frame
-        .beauty_rgba
-        .par_chunks_mut(tile)
-        .zip(frame.distance_m.par_chunks_mut(tile))
-        .zip(frame.position.par_chunks_mut(tile))
-        .zip(objects.par_chunks_mut(tile))
-        .enumerate()
-        .map(|(index, (((beauty, distance), position), object))| {
-            let first_row = index as u32 * ROWS_PER_TILE;
-            let (mut refracted, mut evaluations) = (0u64, 0u64);
-            for (at, (((beauty, distance), position), object)) in beauty
-                .iter_mut()
-                .zip(distance.iter_mut())
-                .zip(position.iter_mut())
-                .zip(object.iter_mut())
-                .enumerate()
-            {
-                let (x, y) = (at as u32 % width, first_row + at as u32 / width);
-                let pixel = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
-                let sample = tracer.trace(rays.direction(pixel));
-                *beauty = Vec4::from((sample.beauty, 1.0)).to_array();
-                *distance = sample.distance_m;
-                *position = sample.position.to_array();
-                *object = sample.object;
-                refracted += u64::from(sample.refracted);
-                evaluations += sample.surface_evaluations as u64;
-            }
-            (refracted, evaluations)
-        })
-        .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
     let stats = TraceStats {
         primary_rays: pixels as u64,
         refracted_rays: counts.0,
@@ -383,7 +410,6 @@ pub fn trace_frame(scene: &TraceScene, width: u32, height: u32) -> TracedFrame {
         build_secs,
         total_secs: started.elapsed().as_secs_f64(),
     };
-    frame.object = objects;
     TracedFrame {
         rendered: frame,
         stats,

@@ -130,27 +130,15 @@ pub enum PositionErrorInput {
     },
 }
 
-/// A pixel sees through the water when the first surface its sight ray meets (`distance_m`) is
-/// nearer than what it shows (`P`), or when it meets the water and nothing behind it. `eye` is the
-/// frame's camera position.
-pub fn water_pixels(frame: &RenderedFrame, eye: Vec3) -> Vec<bool> {
-    frame
-        .position
-        .par_iter()
-        .zip(frame.distance_m.par_iter())
-        .map(|(&p, &distance)| {
-            if !distance.is_finite() {
-                return false;
-            }
-            if !p.iter().all(|c| c.is_finite()) {
-                return true;
-            }
-            let seen = (Vec3::from(p) - eye).length();
-            // Sight rays meeting an object directly give the same distance to rounding; a ray
-            // through the water goes on at least millimetres under it.
-            seen > distance * (1.0 + 1e-4) + 1e-3
-        })
-        .collect()
+/// The pixels whose first surface is the water: the frame's water matte (the EXR's
+/// `WaterMatte.X`; for frames read from the first layout, derived from its `Z` and `P` by
+/// [`crate::output::exr::read_frame_exr`]). A frame without one has no water pixels. `_eye` is
+/// the frame's camera position, which the matte no longer needs.
+pub fn water_pixels(frame: &RenderedFrame, _eye: Vec3) -> Vec<bool> {
+    if frame.water_matte.is_empty() {
+        return vec![false; frame.position.len()];
+    }
+    frame.water_matte.par_iter().map(|&m| m > 0.5).collect()
 }
 
 fn check_inputs(a: &RenderedFrame, b: &RenderedFrame) -> Result<(), PositionErrorInput> {

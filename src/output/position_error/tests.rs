@@ -19,10 +19,11 @@ fn frame_of(width: u32, height: u32, position: impl Fn(f64, f64) -> [f32; 3]) ->
         width,
         height,
         beauty_rgba: vec![[0.5, 0.5, 0.5, 1.0]; pixels],
-        distance_m: vec![3.0; pixels],
+        depth_m: vec![3.0; pixels],
         position: Vec::with_capacity(pixels),
         flags: vec![0; pixels],
         object: vec![OBJECT; pixels],
+        ..Default::default()
     };
     for y in 0..height {
         for x in 0..width {
@@ -381,20 +382,14 @@ fn a_crease_is_not_a_fold() {
 }
 
 #[test]
-fn water_pixels_are_those_whose_first_surface_is_nearer_than_p() {
+fn water_pixels_are_those_of_the_water_matte() {
     let mut frame = frame_of(4, 1, |x, _| [x as f32, 0.0, -4.0]);
-    let eye = Vec3::ZERO;
-    // 0: seen directly; 1: through the water (meets it at 2 m); 2: water with nothing behind;
-    // 3: sky.
-    frame.distance_m = vec![
-        (Vec3::new(0.0, 0.0, -4.0)).length(),
-        2.0,
-        2.0,
-        f32::INFINITY,
-    ];
-    frame.position[2] = [f32::NAN; 3];
-    frame.position[3] = [f32::NAN; 3];
-    assert_eq!(water_pixels(&frame, eye), vec![false, true, true, false]);
+    assert_eq!(water_pixels(&frame, Vec3::ZERO), vec![false; 4]);
+    frame.water_matte = vec![0.0, 1.0, 1.0, 0.0];
+    assert_eq!(
+        water_pixels(&frame, Vec3::ZERO),
+        vec![false, true, true, false]
+    );
 }
 
 /// A method that draws a patch of the floor 40 px from where it is (an 8x8 block of B shows the

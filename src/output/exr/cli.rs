@@ -1,0 +1,72 @@
+//! The EXR options of `snell render` (flattened into its arguments), kept here so the channel
+//! map's options live beside the map.
+
+use crate::frame::{HeaderStamp, SnellError};
+
+/// What the written EXR frames hold besides the pixels.
+#[derive(Clone, Debug, Default, clap::Args)]
+pub struct ExrArgs {
+    /// Write the OpenEXR `owner` attribute. With SOURCE_DATE_EPOCH set (a Unix time, as for
+    /// reproducible builds) frames also get `capDate` (that time, UTC) and `utcOffset` 0.
+    /// Neither is written by default, so the same render gives the same bytes every time.
+    #[arg(long, value_name = "NAME")]
+    pub owner: Option<String>,
+}
+
+impl ExrArgs {
+    /// The header stamp these options and `SOURCE_DATE_EPOCH` ask for.
+    pub fn stamp(&self) -> Result<HeaderStamp, SnellError> {
+        stamp_from(self.owner.clone(), std::env::var("SOURCE_DATE_EPOCH").ok())
+    }
+
+    /// The command-line words that give these options again (for the resume command).
+    pub fn command_words(&self) -> Vec<String> {
+        match &self.owner {
+            Some(owner) => vec!["--owner".into(), owner.clone()],
+            None => Vec::new(),
+        }
+    }
+}
+
+fn stamp_from(owner: Option<String>, epoch: Option<String>) -> Result<HeaderStamp, SnellError> {
+    if let Some(owner) = &owner {
+        if owner.is_empty() || owner.contains('\0') {
+            return Err(SnellError::Argument(
+                "--owner: give a non-empty name without NUL characters, e.g. --owner \"Studio\""
+                    .into(),
+            ));
+        }
+    }
+    let capture_unix_secs = match epoch.as_deref().map(str::trim) {
+        None | Some("") => None,
+        Some(text) => Some(text.parse::<i64>().ok().filter(|s| (0..=253_402_300_799).contains(s)).ok_or_else(
+            || {
+                SnellError::Argument(format!(
+                    "SOURCE_DATE_EPOCH={text:?}: expected a Unix time in seconds (0 to 253402300799), e.g. 1700000000, or unset it"
+                ))
+            },
+        )?),
+    };
+    Ok(HeaderStamp {
+        owner,
+        capture_unix_secs,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn stamps_come_only_from_what_was_given() {
+        assert_eq!(stamp_from(None, None).unwrap(), HeaderStamp::default());
+        let stamp = stamp_from(Some("Studio".into()), Some("1700000000".into())).unwrap();
+        assert_eq!(stamp.owner.as_deref(), Some("Studio"));
+        assert_eq!(stamp.capture_unix_secs, Some(1_700_000_000));
+        let message = stamp_from(None, Some("yesterday".into()))
+            .unwrap_err()
+            .to_string();
+        assert!(message.contains("SOURCE_DATE_EPOCH"), "{message}");
+        assert!(stamp_from(Some(String::new()), None).is_err());
+    }
+}

@@ -1,0 +1,306 @@
+//! One rendered frame as one OpenEXR file, laid out by the channel map ([`channels`], README
+//! "The EXR channel map"): receives a [`RenderedFrame`] and its [`FrameMeta`] and writes
+//! `DIR/<scene>.<frame>.exr` atomically; reads such a file back (this layout and the first one)
+//! for snell's own tools and tests.
+//!
+//! Header: the layout attributes, OpenEXR's standard `screenWindowCenter`/`screenWindowWidth`,
+//! `worldToCamera`, `worldToNDC`, `framesPerSecond`, `chromaticities`, `software` (and `owner`,
+//! `capDate`/`utcOffset` when asked for), the Cryptomatte metadata, and snell's own:
+//! `snell.frame` (int), `snell.timeSecs` (double), `snell.worldFromCamera` (m44f),
+//! `snell.fovYDeg` (float), `snell.cameraEye|Target|Up` (v3f), `snell.method`, `snell.version`,
+//! `snell.channelMap` (the map's version), `snell.objectNames` (JSON: the name of each
+//! `IndexOB`), and each extra entry `k = v` as the string attribute `snell.extra.k`.
+//!
+//! Matrix convention: matrices are stored in Imath's layout (row vectors, translation in the last
+//! row), which is the same 16 floats as glam's column-major `to_cols_array`.
+//! `snell.worldFromCamera` maps snell's right-handed camera space (looking down -Z) to world;
+//! `worldToCamera` follows the OpenEXR standard: left-handed camera space looking down +Z.
+
+pub mod channels;
+pub mod cli;
+pub mod cryptomatte;
+mod decode;
+mod encode;
+mod header;
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use ::exr::compression::Compression;
+
+use super::{write_atomically, OutputError};
+use crate::camera::Camera;
+use crate::draw::{RenderedFrame, NO_OBJECT};
+pub use decode::{read_channels, read_frame_exr};
+use encode::{push_f16, push_f32, ChannelSource};
+
+/// What the header records about a frame besides its pixels.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FrameMeta {
+    pub scene_name: String,
+    pub frame: u32,
+    pub time_secs: f64,
+    pub camera: Camera,
+    /// The rendering method (e.g. "geometric" or "raytrace").
+    pub method: String,
+    /// snell's version, normally [`crate::VERSION`].
+    pub version: String,
+    /// The scene's frame rate (`framesPerSecond`).
+    pub fps: f64,
+    /// Names of the scene's objects by [`RenderedFrame::object`] id: `object_names[k]` is id
+    /// `k + 1`. The Cryptomatte manifest holds these and the water surface's name.
+    pub object_names: Vec<String>,
+    /// `owner`, written when set.
+    pub owner: Option<String>,
+    /// `capDate` (and `utcOffset` 0), written when set: a Unix time, normally
+    /// `SOURCE_DATE_EPOCH`'s, so that frames stay reproducible.
+    pub capture_unix_secs: Option<i64>,
+    /// Further text attributes, written as `snell.extra.<key>`.
+    pub extra: Vec<(String, String)>,
+}
+
+/// The header of a frame read back by [`read_frame_exr`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct ReadMeta {
+    pub frame: u32,
+    pub time_secs: f64,
+    pub camera: Camera,
+    /// `snell.worldFromCamera` as written (Imath layout = glam column-major).
+    pub world_from_camera: [f32; 16],
+    /// The standard `worldToCamera` (left-handed, +Z forward), if present.
+    pub world_to_camera_standard: Option<[f32; 16]>,
+    pub method: String,
+    pub version: String,
+    /// `snell.channelMap`; `None` for the first layout.
+    pub channel_map: Option<String>,
+    /// `snell.objectNames`; empty for the first layout.
+    pub object_names: Vec<String>,
+    /// The `snell.extra.*` attributes with the prefix removed, sorted by key.
+    pub text_attributes: Vec<(String, String)>,
+}
+
+impl FrameMeta {
+    /// The metadata of a frame read back, to write it again (tools and tests that edit frames).
+    pub fn from_read(read: &ReadMeta, scene_name: &str) -> FrameMeta {
+        FrameMeta {
+            scene_name: scene_name.to_string(),
+            frame: read.frame,
+            time_secs: read.time_secs,
+            camera: read.camera,
+            method: read.method.clone(),
+            version: read.version.clone(),
+            fps: 24.0,
+            object_names: read.object_names.clone(),
+            owner: None,
+            capture_unix_secs: None,
+            extra: read.text_attributes.clone(),
+        }
+    }
+}
+
+/// `DIR/<scene>.<frame, at least 4 digits>.exr`.
+pub fn frame_path(dir: &Path, scene_name: &str, frame: u32) -> PathBuf {
+    dir.join(format!("{scene_name}.{frame:04}.exr"))
+}
+
+/// Checks that every layer holds one value per pixel; the optional layers may be empty (a frame
+/// read from a file written before they existed), and are then not written.
+fn check_frame_shape(frame: &RenderedFrame) -> Result<usize, String> {
+    if frame.width == 0 || frame.height == 0 {
+        return Err(format!("frame is empty ({}x{})", frame.width, frame.height));
+    }
+    let pixel_count = frame.pixel_count();
+    let lengths = [
+        ("beauty_rgba", frame.beauty_rgba.len(), false),
+        ("depth_m", frame.depth_m.len(), false),
+        ("position", frame.position.len(), false),
+        ("flags", frame.flags.len(), false),
+        ("apparent_depth_m", frame.apparent_depth_m.len(), true),
+        ("object", frame.object.len(), true),
+        ("water_matte", frame.water_matte.len(), true),
+        ("water_reflection", frame.water_reflection.len(), true),
+    ];
+    for (name, length, optional) in lengths {
+        if length != pixel_count && !(optional && length == 0) {
+            return Err(format!(
+                "frame buffer `{name}` holds {length} pixels but the frame is {}x{} = {pixel_count}",
+                frame.width, frame.height
+            ));
+        }
+    }
+    if frame.water_matte.is_empty() && !frame.water_reflection.is_empty() {
+        return Err("frame buffer `water_reflection` is given without `water_matte`".into());
+    }
+    Ok(pixel_count)
+}
+
+/// The channels of a frame, by the channel map.
+fn frame_channels<'a>(
+    frame: &'a RenderedFrame,
+    crypto_ids: &'a [f32],
+    water_id: f32,
+) -> Vec<ChannelSource<'a>> {
+    use channels::*;
+    let width = frame.width as usize;
+    let row = move |y: usize| y * width..(y + 1) * width;
+    let mut list = Vec::new();
+    for (c, name) in BEAUTY.into_iter().enumerate() {
+        list.push(ChannelSource::f32(name, move |y, out| {
+            frame.beauty_rgba[row(y)]
+                .iter()
+                .for_each(|p| push_f32(out, p[c]))
+        }));
+    }
+    list.push(ChannelSource::f32(DEPTH, move |y, out| {
+        frame.depth_m[row(y)].iter().for_each(|&d| push_f32(out, d))
+    }));
+    for (c, name) in POSITION.into_iter().enumerate() {
+        list.push(ChannelSource::f32(name, move |y, out| {
+            frame.position[row(y)]
+                .iter()
+                .for_each(|p| push_f32(out, p[c]))
+        }));
+    }
+    for (name, bit) in FLAG_CHANNELS {
+        list.push(ChannelSource::f16(name, move |y, out| {
+            frame.flags[row(y)]
+                .iter()
+                .for_each(|f| push_f16(out, if f & bit != 0 { 1.0 } else { 0.0 }))
+        }));
+    }
+    if !frame.apparent_depth_m.is_empty() {
+        list.push(ChannelSource::f32(APPARENT_DEPTH, move |y, out| {
+            frame.apparent_depth_m[row(y)]
+                .iter()
+                .for_each(|&d| push_f32(out, d))
+        }));
+    }
+    if !frame.object.is_empty() {
+        list.push(ChannelSource::f32(INDEX_OB, move |y, out| {
+            frame.object[row(y)]
+                .iter()
+                .for_each(|&id| push_f32(out, id as f32))
+        }));
+    }
+    let has_water = !frame.water_matte.is_empty();
+    if has_water {
+        list.push(ChannelSource::f16(WATER_MATTE, move |y, out| {
+            frame.water_matte[row(y)]
+                .iter()
+                .for_each(|&m| push_f16(out, m))
+        }));
+    }
+    // The effects: what is seen without the water, the refracted share, the reflected sky (not
+    // for a frame read from the first layout, which did not keep the reflection).
+    let has_split = !frame.water_reflection.is_empty();
+    if has_split {
+        let is_water = move |i: usize| frame.water_matte[i] > 0.5;
+        for (c, name) in DIRECT.into_iter().enumerate() {
+            list.push(ChannelSource::f32(name, move |y, out| {
+                for i in row(y) {
+                    push_f32(
+                        out,
+                        if is_water(i) {
+                            0.0
+                        } else {
+                            frame.beauty_rgba[i][c]
+                        },
+                    );
+                }
+            }));
+        }
+        for (c, name) in REFRACTION.into_iter().enumerate() {
+            list.push(ChannelSource::f32(name, move |y, out| {
+                for i in row(y) {
+                    let refracted = frame.beauty_rgba[i][c] - frame.water_reflection[i][c];
+                    push_f32(out, if is_water(i) { refracted } else { 0.0 });
+                }
+            }));
+        }
+        for (c, name) in SKY_REFLECTION.into_iter().enumerate() {
+            list.push(ChannelSource::f32(name, move |y, out| {
+                for i in row(y) {
+                    let reflected = frame.water_reflection[i][c];
+                    push_f32(out, if is_water(i) { reflected } else { 0.0 });
+                }
+            }));
+        }
+    }
+    if !frame.object.is_empty() {
+        let ranks = move |i: usize| {
+            let object = frame.object[i];
+            let object = (object != NO_OBJECT)
+                .then(|| crypto_ids.get(object as usize - 1).copied())
+                .flatten();
+            let water = (has_split && frame.water_matte[i] > 0.5)
+                .then(|| (water_id, frame.water_reflection[i][3]));
+            cryptomatte::pixel_ranks(object, water)
+        };
+        for (rank, (id_name, coverage_name)) in crypto_rank_channels().into_iter().enumerate() {
+            list.push(ChannelSource::f32(id_name, move |y, out| {
+                row(y).for_each(|i| push_f32(out, ranks(i)[rank].0))
+            }));
+            list.push(ChannelSource::f32(coverage_name, move |y, out| {
+                row(y).for_each(|i| push_f32(out, ranks(i)[rank].1))
+            }));
+        }
+    }
+    list
+}
+
+/// Encodes a frame into the bytes of its EXR file.
+fn encode_frame(frame: &RenderedFrame, meta: &FrameMeta) -> Result<Vec<u8>, String> {
+    check_frame_shape(frame)?;
+    if let Some(&id) = frame
+        .object
+        .iter()
+        .find(|&&id| id as usize > meta.object_names.len())
+    {
+        return Err(format!(
+            "object id {id} has no name (the frame names {} objects)",
+            meta.object_names.len()
+        ));
+    }
+    let water_name = cryptomatte::water_name(&meta.object_names);
+    let crypto_ids: Vec<f32> = meta
+        .object_names
+        .iter()
+        .map(|name| cryptomatte::id_float(name))
+        .collect();
+    let mut crypto_names = meta.object_names.clone();
+    crypto_names.push(water_name.clone());
+    let (width, height) = (frame.width as usize, frame.height as usize);
+    let spec = encode::FileSpec {
+        width,
+        height,
+        // ZIP over 16 scan lines: lossless and compact on smooth float data.
+        compression: Compression::ZIP16,
+        attributes: header::attributes(meta, width, height, &crypto_names)?,
+    };
+    encode::encode(
+        &spec,
+        frame_channels(frame, &crypto_ids, cryptomatte::id_float(&water_name)),
+    )
+}
+
+/// Writes one frame to `path` (normally [`frame_path`]) via a temporary file in the same directory,
+/// synced and renamed; creates the directory if needed. On error nothing is left at `path` that was
+/// not there before, and the temporary file is removed.
+pub fn write_frame_exr(
+    path: &Path,
+    frame: &RenderedFrame,
+    meta: &FrameMeta,
+) -> Result<(), OutputError> {
+    // Chunks are compressed in parallel (ZIP dominates the cost of a frame) and written in order,
+    // so the bytes do not depend on thread timing.
+    let bytes = encode_frame(frame, meta).map_err(|cause| OutputError::Write {
+        path: path.to_path_buf(),
+        cause,
+    })?;
+    write_atomically(path, |file| {
+        file.write_all(&bytes).map_err(|error| error.to_string())
+    })
+}
+
+#[cfg(test)]
+mod tests;
