@@ -117,10 +117,11 @@ mod tests {
             width,
             height,
             beauty_rgba: vec![[0.5, 0.5, 0.5, 1.0]; pixels],
-            distance_m: vec![2.0; pixels],
+            depth_m: vec![2.0; pixels],
             position: Vec::with_capacity(pixels),
             flags: vec![0; pixels],
             object: Vec::with_capacity(pixels),
+            ..Default::default()
         };
         for y in 0..height {
             for x in 0..width {

@@ -222,10 +222,12 @@ pub fn read_frame_exr(path: &Path) -> Result<(RenderedFrame, ReadMeta), OutputEr
     let [sr, sg, sb] = channels::SKY_REFLECTION.map(floats);
     let water_reflection = match (sr?, sg?, sb?) {
         (Some(sr), Some(sg), Some(sb)) if !water_matte.is_empty() => {
-            let reflectance = water_reflectance(&image, &meta, &water_matte, &read_error)?;
-            (0..pixel_count)
-                .map(|i| [sr[i], sg[i], sb[i], reflectance[i]])
-                .collect()
+            match water_reflectance(&image, &meta, &water_matte) {
+                Some(reflectance) => (0..pixel_count)
+                    .map(|i| [sr[i], sg[i], sb[i], reflectance[i]])
+                    .collect(),
+                None => Vec::new(),
+            }
         }
         _ => Vec::new(),
     };
@@ -246,13 +248,9 @@ pub fn read_frame_exr(path: &Path) -> Result<(RenderedFrame, ReadMeta), OutputEr
 
 /// Schlick's F per water pixel: the Cryptomatte coverage of the water's ID (0 elsewhere). Where
 /// nothing is behind the water that coverage is 1, not F: the file keeps F only where an object
-/// shares the pixel.
-fn water_reflectance(
-    image: &::exr::prelude::Image<::exr::prelude::Layers<::exr::prelude::AnyChannels<FlatSamples>>>,
-    meta: &ReadMeta,
-    water_matte: &[f32],
-    read_error: &impl Fn(String) -> OutputError,
-) -> Result<Vec<f32>, OutputError> {
+/// shares the pixel. `None` for a file without the Cryptomatte (written from a frame without an
+/// object layer).
+fn water_reflectance(image: &AnyImage, meta: &ReadMeta, water_matte: &[f32]) -> Option<Vec<f32>> {
     let water_id =
         super::cryptomatte::id_float(&super::cryptomatte::water_name(&meta.object_names));
     let find = |name: &str| {
@@ -269,9 +267,7 @@ fn water_reflectance(
     let mut reflectance = vec![0.0f32; water_matte.len()];
     for (id_name, coverage_name) in channels::crypto_rank_channels() {
         let (Some(ids), Some(coverages)) = (find(&id_name), find(&coverage_name)) else {
-            return Err(read_error(format!(
-                "channels `{id_name}` and `{coverage_name}` (float32) are missing"
-            )));
+            return None;
         };
         for i in 0..reflectance.len() {
             if water_matte[i] > 0.5 && ids[i].to_bits() == water_id.to_bits() {
@@ -279,7 +275,7 @@ fn water_reflectance(
             }
         }
     }
-    Ok(reflectance)
+    Some(reflectance)
 }
 
 /// An attribute's text as UTF-8 (what snell writes; other bytes are replaced).

@@ -330,7 +330,8 @@ fn frames_of_the_first_layout_still_read() {
     let (frame, meta) = read_frame_exr(&path).unwrap();
     assert_eq!(meta.channel_map, None);
     assert_eq!((frame.width, frame.height), (48, 27));
-    assert!(frame.apparent_depth_m.is_empty() && frame.water_matte.is_empty());
+    assert!(frame.apparent_depth_m.is_empty() && frame.water_reflection.is_empty());
+    assert_eq!(frame.water_matte.len(), frame.pixel_count());
     assert!(frame.depth_m.iter().all(|d| d.is_finite() && *d > 0.0));
     assert!(frame.position.iter().flatten().all(|c| c.is_finite()));
     assert_eq!(frame.object.len(), frame.pixel_count());
@@ -349,8 +350,40 @@ fn frames_of_the_first_layout_still_read() {
         }
     }
     assert!(checked > 50, "{checked}");
+    // The water matte derived from Z and P: the water's surface in front of what is seen below
+    // it, and everything seen directly at its own depth.
+    let (mut water, mut direct) = (0, 0);
+    for (i, p) in frame.position.iter().enumerate() {
+        let seen_depth = camera.view_depth(Vec3::from(*p));
+        match (frame.water_matte[i] == 1.0, frame.object[i] != 0) {
+            (true, true) => {
+                assert!(seen_depth > frame.depth_m[i] + 1e-3, "{i}");
+                water += 1;
+            }
+            (false, true) => {
+                assert!((seen_depth - frame.depth_m[i]).abs() < 1e-3, "{i}");
+                direct += 1;
+            }
+            (true, false) => assert!(frame.depth_m[i] < SKY_DEPTH_M, "{i}"),
+            (false, false) => assert_eq!(frame.depth_m[i], SKY_DEPTH_M, "{i}"),
+        }
+    }
+    assert!(water > 100 && direct > 100, "{water} {direct}");
     let raw = read_channels(&path).unwrap();
     assert!(raw.types.contains_key("flags.convergence") && raw.types["object"] == "u32");
+
+    // Written again, it follows the map, with the matte and without the effects it cannot split.
+    let temp = tempfile::tempdir().unwrap();
+    let again = temp.path().join("again.exr");
+    write_frame_exr(&again, &frame, &FrameMeta::from_read(&meta, "pool")).unwrap_err();
+    let mut meta_again = FrameMeta::from_read(&meta, "pool");
+    meta_again.object_names = (1..=7).map(|k| format!("object {k}")).collect();
+    write_frame_exr(&again, &frame, &meta_again).unwrap();
+    let written = read_channels(&again).unwrap();
+    assert!(written.types.contains_key(channels::WATER_MATTE));
+    assert!(!written.types.contains_key(channels::REFRACTION[0]));
+    let (read_again, _) = read_frame_exr(&again).unwrap();
+    assert_bit_exact(&frame, &read_again);
 }
 
 #[test]
