@@ -15,10 +15,31 @@ pub struct Camera {
     pub fov_y_deg: f32,
 }
 
+/// A view closer to vertical than this angle (radians) has no roll defined by +y up: it takes
+/// [`up_for_view`]'s fallback instead.
+pub const VERTICAL_VIEW_RAD: f32 = 1e-3;
+
+/// The up vector a camera looking along `view` uses: +y, unless the view is within
+/// [`VERTICAL_VIEW_RAD`] of straight down or up. Then the picture keeps the orientation of a
+/// camera that faces +z and tilts down (or up) to the vertical: its top points along +z when
+/// looking down and along -z when looking up. (No rule can be continuous for every path through
+/// the vertical; this one is for the common tilt.)
+pub fn up_for_view(view: Vec3) -> Vec3 {
+    let horizontal = (view.x * view.x + view.z * view.z).sqrt();
+    if horizontal > VERTICAL_VIEW_RAD.sin() * view.length() {
+        Vec3::Y
+    } else if view.y < 0.0 {
+        Vec3::Z
+    } else {
+        Vec3::NEG_Z
+    }
+}
+
 impl Camera {
-    /// Unit view direction, from the eye toward the target: depths are measured along it.
+    /// Unit view direction, from the eye toward the target: depths are measured along it. A
+    /// target on the eye looks along +z, as [`Camera::view_from_world`] does.
     pub fn forward(&self) -> Vec3 {
-        (self.target - self.eye).normalize()
+        (self.target - self.eye).try_normalize().unwrap_or(Vec3::Z)
     }
 
     /// Depth along the view axis of a world point (negative behind the eye): what the EXR's `Z`
@@ -27,8 +48,32 @@ impl Camera {
         (point_in_world - self.eye).dot(self.forward())
     }
 
+    /// A camera at `eye` looking at `target`, with [`up_for_view`]'s up vector.
+    pub fn looking_at(eye: Vec3, target: Vec3, fov_y_deg: f32) -> Camera {
+        Camera {
+            eye,
+            target,
+            up: up_for_view(target - eye),
+            fov_y_deg,
+        }
+    }
+
+    /// World to camera space. Never NaN for finite inputs: a target on the eye looks along +z, and
+    /// an up vector along the view is replaced by [`up_for_view`]'s.
     pub fn view_from_world(&self) -> Mat4 {
-        glam::camera::rh::view::look_at_mat4(self.eye, self.target, self.up)
+        let (mut view, mut target) = (self.target - self.eye, self.target);
+        if view.length().is_nan() || view.length() <= 1e-6 {
+            view = Vec3::Z;
+            target = self.eye + view;
+        }
+        let up = if view.normalize().cross(self.up.normalize_or_zero()).length()
+            > VERTICAL_VIEW_RAD.sin() * 0.5
+        {
+            self.up
+        } else {
+            up_for_view(view)
+        };
+        glam::camera::rh::view::look_at_mat4(self.eye, target, up)
     }
 
     /// Right-handed perspective with depth in [0, 1] and y up in NDC: wgpu's clip space, which is
@@ -99,6 +144,49 @@ impl PixelRays {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn vertical_and_degenerate_views_give_finite_matrices_with_the_stated_up() {
+        for (eye, target) in [
+            (Vec3::new(0.0, 3.0, 0.0), Vec3::new(0.0, -1.0, 0.0)),
+            (Vec3::new(0.0, 3.0, 0.0), Vec3::new(0.0, 9.0, 0.0)),
+            (Vec3::new(1.0, 3.0, 2.0), Vec3::new(1.0, 3.0, 2.0)),
+            (Vec3::new(0.0, 3.0, 0.0), Vec3::new(1e-5, -1.0, 0.0)),
+        ] {
+            let camera = Camera::looking_at(eye, target, 50.0);
+            let matrix = camera.clip_from_world(64, 36);
+            assert!(matrix.is_finite(), "{eye} -> {target}: {matrix}");
+            // Even with +y forced as up, the matrix is finite.
+            let forced = Camera {
+                up: Vec3::Y,
+                ..camera
+            };
+            assert!(forced.clip_from_world(64, 36).is_finite());
+        }
+        // Looking down, the picture's top points along +z: a point at +z is above the centre.
+        let down = Camera::looking_at(Vec3::new(0.0, 3.0, 0.0), Vec3::ZERO, 50.0);
+        assert_eq!(down.up, Vec3::Z);
+        let ahead = down.pixel_of(Vec3::new(0.0, 0.0, 0.5), 64, 36).unwrap();
+        assert!(ahead.y < 18.0, "{ahead}");
+        // Which is the limit of a camera facing +z tilting down: the same picture a hair off
+        // the vertical with +y up.
+        let tilted = Camera::looking_at(Vec3::new(0.0, 3.0, 0.0), Vec3::new(0.0, 0.0, 0.01), 50.0);
+        assert_eq!(tilted.up, Vec3::Y);
+        let ahead_tilted = tilted.pixel_of(Vec3::new(0.0, 0.0, 0.5), 64, 36).unwrap();
+        assert!(
+            (ahead - ahead_tilted).length() < 0.5,
+            "{ahead} vs {ahead_tilted}"
+        );
+        let up = Camera::looking_at(Vec3::ZERO, Vec3::Y, 50.0);
+        assert_eq!(up.up, Vec3::NEG_Z);
+        // An ordinary view keeps +y and exactly glam's matrix.
+        let usual = Camera::looking_at(Vec3::new(1.0, 3.0, 8.0), Vec3::ZERO, 50.0);
+        assert_eq!(usual.up, Vec3::Y);
+        assert_eq!(
+            usual.view_from_world(),
+            glam::camera::rh::view::look_at_mat4(usual.eye, usual.target, Vec3::Y)
+        );
+    }
 
     #[test]
     fn pixel_and_ray_are_inverse() {

@@ -36,6 +36,7 @@ pub mod chart;
 pub mod check;
 pub mod color;
 pub mod draw;
+pub mod files;
 pub mod frame;
 pub mod gpu;
 pub mod interrupt;

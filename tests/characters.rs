@@ -741,8 +741,13 @@ fn unreadable_and_non_gltf_files_are_reported() {
     let dir = tempfile::tempdir().unwrap();
     let missing = dir.path().join("nobody.glb");
     let error = load_err(&missing);
-    assert!(matches!(error, CharacterError::Read { .. }), "{error:?}");
-    assert_mentions(&error, &["nobody.glb"]);
+    assert!(matches!(error, CharacterError::File(_)), "{error:?}");
+    assert_mentions(&error, &["nobody.glb", "no such file"]);
+    // A directory or a device is refused as such, without reading it.
+    let error = load_err(dir.path());
+    assert_mentions(&error, &["a directory, not a regular file"]);
+    let error = load_err(Path::new("/dev/zero"));
+    assert_mentions(&error, &["/dev/zero", "a character device"]);
 
     let error = load_err_written(dir.path(), "notes.gltf", "this is not JSON");
     assert!(matches!(error, CharacterError::NotGltf { .. }), "{error:?}");

@@ -48,10 +48,8 @@ struct Container<'a> {
 }
 
 pub(super) fn load(path: &Path) -> Result<CharacterAsset, CharacterError> {
-    let bytes = std::fs::read(path).map_err(|source| CharacterError::Read {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let bytes = crate::files::read_regular(path, crate::files::MAX_ASSET_BYTES)
+        .map_err(CharacterError::File)?;
     let container = split_container(path, &bytes)?;
     let not_gltf = |reason: String| CharacterError::NotGltf {
         path: path.to_path_buf(),
@@ -89,6 +87,40 @@ pub(super) fn load(path: &Path) -> Result<CharacterAsset, CharacterError> {
                         root.accessors.len()
                     )));
                 }
+            }
+        }
+    }
+    // gltf-json 1.4's animation validator checks each channel's sampler but not its target, and
+    // the `gltf` accessors unwrap both (the node by index, the path as a known property): a
+    // target node out of range or an unknown path would panic when the animation is read.
+    for (a, animation) in root.animations.iter().enumerate() {
+        for (c, channel) in animation.channels.iter().enumerate() {
+            use gltf::json::validation::Validate;
+            let mut problems = Vec::new();
+            channel.target.validate(
+                &root,
+                || {
+                    gltf::json::Path::new()
+                        .field("animations")
+                        .index(a)
+                        .field("channels")
+                        .index(c)
+                        .field("target")
+                },
+                &mut |path, error| problems.push(format!("{}: {error}", path())),
+            );
+            if let Some(problem) = problems.into_iter().next() {
+                let detail = match &channel.target.path {
+                    gltf::json::validation::Checked::Invalid => {
+                        " (path must be translation, rotation, scale or weights)".to_string()
+                    }
+                    _ => format!(
+                        " (node {} of {} nodes)",
+                        channel.target.node.value(),
+                        root.nodes.len()
+                    ),
+                };
+                return Err(not_gltf(format!("{problem}{detail}")));
             }
         }
     }
@@ -385,7 +417,8 @@ impl Loader {
         }
         let base = self.path.parent().unwrap_or(Path::new(""));
         let file = base.join(percent_decode(uri));
-        let bytes = std::fs::read(&file).map_err(|e| format!("{}: {e}", file.display()))?;
+        let bytes = crate::files::read_regular(&file, crate::files::MAX_ASSET_BYTES)
+            .map_err(|e| e.to_string())?;
         self.files.push(file);
         Ok(bytes)
     }
@@ -753,13 +786,12 @@ impl Loader {
             reason,
         };
         let bytes = bytes.map_err(|reason| error(reason, &source_name))?;
-        let decoded = image::load_from_memory(&bytes).map_err(|e| {
+        let rgba = crate::files::decode_image_rgba8(&bytes).map_err(|e| {
             error(
                 format!("cannot decode (PNG and JPEG are read): {e}"),
                 &source_name,
             )
         })?;
-        let rgba = decoded.to_rgba8();
         let file_name = self
             .path
             .file_name()

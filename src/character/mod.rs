@@ -28,11 +28,9 @@ pub use skinning::Pose;
 /// Why a character file cannot be used. Every variant names the file and says the cause plainly.
 #[derive(Debug, thiserror::Error)]
 pub enum CharacterError {
-    #[error("{}: cannot read the file: {source}", .path.display())]
-    Read {
-        path: PathBuf,
-        source: std::io::Error,
-    },
+    /// The model file is not a regular file of a sensible size (a FIFO, a device, too large).
+    #[error("{0}")]
+    File(crate::files::InputFileError),
     #[error("{}: not a usable glTF 2.0 file: {reason}", .path.display())]
     NotGltf { path: PathBuf, reason: String },
     #[error("{}: buffer {buffer} ({source_name}) cannot be read: {reason}", .path.display())]

@@ -50,20 +50,21 @@ pub fn digest_scene_files(
     scene: &Scene,
     characters: &[Character],
 ) -> Result<SceneFilesDigest, SnellError> {
-    let read = |path: &Path| {
-        std::fs::read(path).map_err(|source| {
-            SnellError::Scene(SceneError::Read {
-                path: path.to_path_buf(),
-                source,
-            })
-        })
+    // The scene and its assets passed these caps when they were loaded; a file swapped since then
+    // for a FIFO or a device is refused here rather than blocking the hash.
+    let read = |path: &Path, max_bytes: u64| {
+        crate::files::read_regular(path, max_bytes)
+            .map_err(|error| SnellError::Scene(SceneError::File(error)))
     };
     let scene_dir = scene.path.parent().unwrap_or(Path::new(""));
     let mut hasher = KeyHasher::new("snell-scene-files");
-    hasher.input("scene", &read(&scene.path)?);
+    hasher.input("scene", &read(&scene.path, crate::files::MAX_SCENE_BYTES)?);
     for file in referenced_files(scene, characters) {
         let label = file.strip_prefix(scene_dir).unwrap_or(&file);
-        hasher.input(&label.to_string_lossy(), &read(&file)?);
+        hasher.input(
+            &label.to_string_lossy(),
+            &read(&file, crate::files::MAX_ASSET_BYTES)?,
+        );
     }
     Ok(SceneFilesDigest(hasher.finish().0))
 }

@@ -6,6 +6,7 @@
 pub mod bench;
 pub mod characters;
 pub mod inputs;
+pub mod limits;
 pub mod resume;
 pub mod traced;
 
@@ -313,6 +314,8 @@ pub struct RenderJob {
     /// The scene file and every file it references, hashed once at load (frames' input hash,
     /// simulation checkpoint key).
     scene_files: inputs::SceneFilesDigest,
+    /// What a frame needs before the image size is known ([`limits`]); checked at load.
+    pub resources: crate::scene::resources::Estimate,
 }
 
 /// Who made a frame and when, for the EXR header (`owner`, `capDate`).
@@ -341,6 +344,13 @@ impl RenderJob {
         let loaded = characters::load_characters(&scene, &mut textures)?;
         let scene_files = inputs::digest_scene_files(&scene, &loaded)?;
         let dynamics = characters::Dynamics::new(&scene, loaded, &scene_files)?;
+        let ripple_node_steps = dynamics.simulation.as_ref().map_or(0, |simulation| {
+            let settings = simulation.settings();
+            settings.node_count() as u64
+                * settings.substeps_per_frame(1.0 / scene.timeline.fps) as u64
+        });
+        let resources =
+            limits::check_loaded(&scene, &dynamics.characters, &textures, ripple_node_steps)?;
         let waves = WaveField {
             level_m: scene.water.level_m,
             waves: scene.water.waves.iter().map(wave_from_spec).collect(),
@@ -366,7 +376,15 @@ impl RenderJob {
             query_y_range: (bottom, top),
             traced_textures: std::sync::OnceLock::new(),
             scene_files,
+            resources,
         })
+    }
+
+    /// A frame of this job at `width` x `height` within the memory limit and the GPU's readback
+    /// limit ([`limits::check_frame`]); every frame checks it before it starts, and a render
+    /// before its first frame.
+    pub fn check_frame_resources(&self, width: u32, height: u32) -> Result<(), SnellError> {
+        limits::check_frame(&self.resources, self.method, width, height).map(|_| ())
     }
 
     /// The rendering method, as EXR headers and report rows name it.
@@ -471,6 +489,7 @@ impl RenderJob {
         let camera = self.camera_track.sample(time_secs);
         let clock = Instant::now();
         let posed = self.dynamics.posed_objects(time_secs);
+        limits::check_posed(&self.scene, frame, &posed)?;
         stage_secs.insert("skinning".to_string(), clock.elapsed().as_secs_f64());
         let clock = Instant::now();
         let ripples = self
@@ -531,6 +550,7 @@ impl RenderJob {
         height: u32,
         previous: Option<&VertexTracking>,
     ) -> Result<RefractedFrame, SnellError> {
+        self.check_frame_resources(width, height)?;
         let mut stage_secs = BTreeMap::new();
         let water = self.frame_water(frame, &mut stage_secs)?;
         if self.method.traced_water().is_some() {
@@ -815,6 +835,15 @@ impl RenderJob {
             scene.water.n_below
         );
         let _ = writeln!(text, "textures   {}", self.textures.len());
+        let mut at_default_size = self.resources;
+        at_default_size.pixels = 1280 * 720;
+        let _ = writeln!(
+            text,
+            "resources  {} (at 1280x720; limit {})",
+            at_default_size.describe(),
+            crate::scene::resources::memory_limit()
+                .map_or_else(|e| e, crate::scene::resources::human_bytes)
+        );
         let adapter = crate::gpu::probe_adapter().unwrap_or_else(|e| format!("none usable: {e}"));
         let _ = writeln!(text, "adapter    {adapter}");
         text

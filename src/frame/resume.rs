@@ -271,6 +271,7 @@ impl RenderJob {
             resume,
             stop,
         } = *options;
+        self.check_frame_resources(width, height)?;
         crate::output::ensure_output_dir(out_dir)?;
         crate::output::check_writable(out_dir)?;
         let stale =

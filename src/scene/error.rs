@@ -13,12 +13,9 @@ use toml::Spanned;
 /// wrong and what to change.
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
-    #[error("{}: cannot read the scene file ({source}); check the path and that the file is readable", .path.display())]
-    Read {
-        path: PathBuf,
-        #[source]
-        source: std::io::Error,
-    },
+    /// The scene file is not a readable regular file of a sensible size.
+    #[error("{0}; name a regular TOML file of at most {max} MiB", max = crate::files::MAX_SCENE_BYTES >> 20)]
+    File(#[source] crate::files::InputFileError),
     #[error("{}", located_message(.file, *.line, *.column, .key, .problem, .fix))]
     Invalid {
         file: PathBuf,
@@ -38,7 +35,7 @@ impl SceneError {
     /// The (line, column) the error points at, when it points into the file.
     pub fn line_column(&self) -> Option<(usize, usize)> {
         match self {
-            SceneError::Read { .. } => None,
+            SceneError::File(_) => None,
             SceneError::Invalid { line, column, .. } => Some((*line, *column)),
         }
     }

@@ -12,7 +12,9 @@
 
 mod error;
 mod format;
+pub mod limits;
 pub mod primitives;
+pub mod resources;
 pub mod textures;
 mod validate;
 
@@ -50,6 +52,9 @@ pub struct Scene {
     lighting: Lighting,
     /// `[quality]`: the accuracy the scene asks for (none: render as the file says).
     pub quality: QualitySpec,
+    /// What a frame of the scene file needs (characters, textures and the image size are added
+    /// by the frame stage), checked against the limits at validation.
+    pub resources: resources::Estimate,
 }
 
 /// `[quality]`, validated.
@@ -261,11 +266,10 @@ struct MeshPart<'a> {
 impl Scene {
     /// Reads and validates a scene file.
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
-        let text = std::fs::read_to_string(path).map_err(|source| SceneError::Read {
-            path: path.to_path_buf(),
-            source,
-        })?;
-        Scene::parse(&text, path)
+        let bytes = crate::files::read_regular(path, crate::files::MAX_SCENE_BYTES)
+            .map_err(SceneError::File)?;
+        let text = utf8_text(&bytes, path)?;
+        Scene::parse(text, path)
     }
 
     /// Validates scene text; `path` names the file in errors and anchors relative image paths.
@@ -276,7 +280,7 @@ impl Scene {
             text,
             root: &root,
         };
-        check_numbers_finite(&map, root.get_ref(), &KeyPath::root())?;
+        check_numbers(&map, root.get_ref(), &KeyPath::root())?;
         let raw: format::RawScene = toml::from_str(text).map_err(|e| structure_error(&map, &e))?;
         validate::validate(raw, &map)
     }
@@ -470,6 +474,26 @@ fn image_error(spec: &TextureSpec, cause: &str) -> SceneError {
     }
 }
 
+/// The file as UTF-8 text, or an error at the line and column of the first byte that is not.
+fn utf8_text<'a>(bytes: &'a [u8], path: &Path) -> Result<&'a str, SceneError> {
+    std::str::from_utf8(bytes).map_err(|error| {
+        let valid = error.valid_up_to();
+        let prefix = std::str::from_utf8(&bytes[..valid]).unwrap_or_default();
+        let (line, column) = line_column_of(prefix, valid);
+        SceneError::Invalid {
+            file: path.to_path_buf(),
+            line,
+            column,
+            key: String::new(),
+            problem: format!(
+                "the file is not UTF-8 text (byte 0x{:02x} cannot start or continue a character here)",
+                bytes[valid]
+            ),
+            fix: "save it as UTF-8, as TOML requires (e.g. iconv -f latin1 -t utf-8)".into(),
+        }
+    })
+}
+
 fn syntax_error(text: &str, path: &Path, error: &toml::de::Error) -> SceneError {
     let offset = error.span().map_or(0, |s| s.start);
     let (line, column) = line_column_of(text, offset);
@@ -501,25 +525,27 @@ fn structure_error(map: &SourceMap<'_>, error: &toml::de::Error) -> SceneError {
     map.error_at(offset, key, message, fix)
 }
 
-/// TOML allows `nan` and `inf`; no scene quantity may be either, so they are refused wherever
-/// they appear, before the values lose their positions.
-fn check_numbers_finite(
+/// Every number of the file against its key's stated range ([`limits::KEY_RANGES`]), at the
+/// number's own position, before the values lose their positions. TOML allows `nan` and `inf`;
+/// no scene quantity may be either. Numbers at keys without a range (a number where the format
+/// wants text, an unknown key) are left to the typed pass, which names the real problem.
+fn check_numbers(
     map: &SourceMap<'_>,
     table: &DeTable<'_>,
     path: &KeyPath,
 ) -> Result<(), SceneError> {
     for (key, value) in table.iter() {
-        check_value_finite(map, value, &path.key(key.get_ref()))?;
+        check_value(map, value, &path.key(key.get_ref()))?;
     }
     Ok(())
 }
 
-fn check_value_finite(
+fn check_value(
     map: &SourceMap<'_>,
     value: &toml::Spanned<DeValue<'_>>,
     path: &KeyPath,
 ) -> Result<(), SceneError> {
-    match value.get_ref() {
+    let (number, written) = match value.get_ref() {
         DeValue::Float(float) => {
             let written = float.as_str();
             if written.contains("nan") || written.contains("inf") {
@@ -530,14 +556,48 @@ fn check_value_finite(
                     "write a finite value",
                 ));
             }
+            (
+                written.parse::<f64>().unwrap_or(f64::INFINITY),
+                written.to_string(),
+            )
         }
+        DeValue::Integer(integer) => (
+            i128::from_str_radix(integer.as_str(), integer.radix())
+                .map_or(f64::INFINITY, |v| v as f64),
+            integer.to_string(),
+        ),
         DeValue::Array(array) => {
             for (i, element) in array.iter().enumerate() {
-                check_value_finite(map, element, &path.index(i))?;
+                check_value(map, element, &path.index(i))?;
             }
+            return Ok(());
         }
-        DeValue::Table(table) => check_numbers_finite(map, table, path)?,
-        _ => {}
+        DeValue::Table(table) => return check_numbers(map, table, path),
+        _ => return Ok(()),
+    };
+    let Some(range) = limits::range_of(path) else {
+        return Ok(());
+    };
+    // A fraction where a whole number belongs is a type error the typed pass words better.
+    if range.integer && matches!(value.get_ref(), DeValue::Float(_)) {
+        return Ok(());
+    }
+    if !range.contains(number) {
+        return Err(map.error_at(
+            value.span().start,
+            path.to_string(),
+            format!("must be {} (got {written})", range.describe()),
+            format!(
+                "write a value in that range, e.g. {} = {}",
+                range
+                    .key
+                    .rsplit('.')
+                    .next()
+                    .unwrap_or(range.key)
+                    .trim_end_matches("[]"),
+                range.example
+            ),
+        ));
     }
     Ok(())
 }
@@ -753,8 +813,9 @@ mod tests {
         )
         .unwrap_err();
         assert!(
-            e.to_string()
-                .starts_with("c.toml:2:16: sky.zenith_color: colour components"),
+            e.to_string().starts_with(
+                "c.toml:2:22: sky.zenith_color[1]: must be an sRGB colour component from 0 to 1"
+            ),
             "{e}"
         );
         let e = Scene::parse(

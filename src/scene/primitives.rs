@@ -15,7 +15,78 @@ pub const DEFAULT_MAX_EDGE_M: f64 = 0.1;
 const DECK_OUTWARD_EDGE_M: f64 = 0.5;
 
 fn segments(length_m: f64, max_edge_m: f64) -> u32 {
+    // Saturates (as `as` does) for lengths no scene within its limits has.
     (length_m / max_edge_m).ceil().max(1.0) as u32
+}
+
+/// Vertices and triangles of [`add_grid`] over edges of these lengths (the meshes' counts known
+/// before they are built, for the scene's resource estimate).
+fn grid_counts(len_u: f64, len_v: f64, max_edge_m: [f64; 2]) -> (u64, u64) {
+    let (nu, nv) = (
+        segments(len_u, max_edge_m[0]) as u64,
+        segments(len_v, max_edge_m[1]) as u64,
+    );
+    ((nu + 1) * (nv + 1), 2 * nu * nv)
+}
+
+/// (vertices, triangles) [`box_mesh`] builds, computed without building it; saturates instead
+/// of overflowing for absurd sizes.
+pub fn box_counts(size_m: DVec3, max_edge_m: f64) -> (u64, u64) {
+    let faces = [
+        (size_m.z, size_m.y),
+        (size_m.x, size_m.z),
+        (size_m.x, size_m.y),
+    ];
+    faces.iter().fold((0, 0), |(v, t), &(u, w)| {
+        let (fv, ft) = grid_counts(u, w, [max_edge_m; 2]);
+        (v.saturating_add(2 * fv), t.saturating_add(2 * ft))
+    })
+}
+
+/// (vertices, triangles) of [`sphere_mesh`].
+pub fn sphere_counts(radius_m: f64, max_edge_m: f64) -> (u64, u64) {
+    use std::f64::consts::PI;
+    let rings = segments(PI * radius_m, max_edge_m).max(4) as u64;
+    let segs = segments(2.0 * PI * radius_m, max_edge_m).max(8) as u64;
+    (
+        (rings - 1) * (segs + 1) + 2 * segs,
+        2 * segs + 2 * (rings - 2) * segs,
+    )
+}
+
+/// (vertices, triangles) of [`quad_mesh`].
+pub fn quad_counts(size_m: [f64; 2], max_edge_m: f64) -> (u64, u64) {
+    grid_counts(size_m[0], size_m[1], [max_edge_m; 2])
+}
+
+/// (vertices, triangles) of all three parts of [`pool_meshes`].
+pub fn pool_counts(dims: &PoolDims, max_edge_m: f64) -> (u64, u64) {
+    let (length_x, length_z) = (
+        dims.max_xz[0] - dims.min_xz[0],
+        dims.max_xz[1] - dims.min_xz[1],
+    );
+    let wall_height = dims.depth_m + dims.coping_height_m;
+    let w = dims.deck_width_m;
+    let outward = DECK_OUTWARD_EDGE_M.max(max_edge_m);
+    let fine = [max_edge_m; 2];
+    let grids = [
+        grid_counts(length_x, length_z, fine),
+        grid_counts(length_x, wall_height, fine),
+        grid_counts(length_x, wall_height, fine),
+        grid_counts(length_z, wall_height, fine),
+        grid_counts(length_z, wall_height, fine),
+        grid_counts(length_x, w, [max_edge_m, outward]),
+        grid_counts(length_x, w, [max_edge_m, outward]),
+        grid_counts(w, length_z, [outward, max_edge_m]),
+        grid_counts(w, length_z, [outward, max_edge_m]),
+        grid_counts(w, w, [outward; 2]),
+        grid_counts(w, w, [outward; 2]),
+        grid_counts(w, w, [outward; 2]),
+        grid_counts(w, w, [outward; 2]),
+    ];
+    grids.iter().fold((0, 0), |(v, t), &(gv, gt)| {
+        (v.saturating_add(gv), t.saturating_add(gt))
+    })
 }
 
 fn push_vertex(mesh: &mut Mesh, position: DVec3, normal: DVec3, uv_m: [f64; 2]) -> u32 {
@@ -346,6 +417,47 @@ pub fn rotation_from_yaw_pitch_roll_deg([yaw, pitch, roll]: [f64; 3]) -> DQuat {
 pub(crate) mod tests {
     use super::*;
 
+    /// pool.toml's pool: 10 m x 5 m, 1.6 m deep, a 3 m deck.
+    fn pool_dims() -> PoolDims {
+        PoolDims {
+            min_xz: [-5.0, -2.5],
+            max_xz: [5.0, 2.5],
+            water_level_m: 0.0,
+            depth_m: 1.6,
+            coping_height_m: 0.25,
+            deck_width_m: 3.0,
+        }
+    }
+
+    #[test]
+    fn counts_known_before_building_equal_the_built_meshes() {
+        let count = |mesh: &Mesh| (mesh.positions.len() as u64, mesh.triangles.len() as u64);
+        for (size, edge) in [
+            (DVec3::new(1.0, 0.5, 0.8), 0.1),
+            (DVec3::new(3.3, 0.01, 2.0), 0.07),
+            (DVec3::new(0.2, 0.2, 0.2), 1.0),
+        ] {
+            assert_eq!(box_counts(size, edge), count(&box_mesh(size, edge)));
+            assert_eq!(
+                quad_counts([size.x, size.z], edge),
+                count(&quad_mesh([size.x, size.z], edge))
+            );
+            assert_eq!(
+                sphere_counts(size.x, edge),
+                count(&sphere_mesh(size.x, edge))
+            );
+        }
+        let dims = pool_dims();
+        for edge in [0.1, 0.33, 0.7] {
+            let pool = pool_meshes(&dims, edge);
+            let (v, t) = [&pool.floor, &pool.walls, &pool.deck]
+                .iter()
+                .map(|m| count(m))
+                .fold((0, 0), |(v, t), (mv, mt)| (v + mv, t + mt));
+            assert_eq!(pool_counts(&dims, edge), (v, t), "edge {edge}");
+        }
+    }
+
     /// Checks what every mesh must satisfy: matching attribute lengths, valid indices, unit normals,
     /// no degenerate triangles, and each triangle's winding agreeing with its vertex normals.
     pub(crate) fn assert_well_formed(mesh: &Mesh) {
@@ -484,14 +596,7 @@ pub(crate) mod tests {
 
     #[test]
     fn pool_walls_sit_exactly_on_the_water_extent() {
-        let dims = PoolDims {
-            min_xz: [-5.0, -2.5],
-            max_xz: [5.0, 2.5],
-            water_level_m: 0.0,
-            depth_m: 1.6,
-            coping_height_m: 0.25,
-            deck_width_m: 3.0,
-        };
+        let dims = pool_dims();
         let pool = pool_meshes(&dims, 0.1);
         for mesh in [&pool.floor, &pool.walls, &pool.deck] {
             assert_well_formed(mesh);

@@ -129,19 +129,12 @@ impl TextureSpec {
             }
             TextureSpec::Tiles(tiles) => Ok(bake_tiles(name, tiles)),
             TextureSpec::Image(image) => {
-                let decoded = image::ImageReader::open(&image.path)
+                let bytes = crate::files::read_regular(&image.path, crate::files::MAX_ASSET_BYTES)
                     .map_err(|e| ImageLoadError {
                         cause: e.to_string(),
-                    })?
-                    .with_guessed_format()
-                    .map_err(|e| ImageLoadError {
-                        cause: e.to_string(),
-                    })?
-                    .decode()
-                    .map_err(|e| ImageLoadError {
-                        cause: e.to_string(),
-                    })?
-                    .to_rgba8();
+                    })?;
+                let decoded = crate::files::decode_image_rgba8(&bytes)
+                    .map_err(|cause| ImageLoadError { cause })?;
                 Ok(BakedTexture {
                     texture: Texture {
                         name: name.to_owned(),

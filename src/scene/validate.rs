@@ -10,6 +10,7 @@ use super::error::{KeyPath, SourceMap};
 use super::format::{
     RawAnimation, RawCameraKey, RawCharacter, RawObject, RawRipples, RawScene, RawTexture, RawWater,
 };
+use super::limits::{MAX_FRAME_NUMBER, MAX_TIMELINE_FRAMES};
 use super::primitives::DEFAULT_MAX_EDGE_M;
 use super::textures::{srgb_to_linear3, ImageSpec, LaneSpec, TextureSpec, TilesSpec};
 use super::{
@@ -103,8 +104,18 @@ pub(crate) fn validate(raw: RawScene, map: &SourceMap<'_>) -> Result<Scene> {
         .map(|(i, c)| character(c, &root.key("character").index(i), i, &timeline, map))
         .collect::<Result<Vec<_>>>()?;
 
+    let object_paths: Vec<KeyPath> = match &raw.object {
+        Some(_) => (0..objects.len())
+            .map(|i| root.key("object").index(i))
+            .collect(),
+        None => vec![root.clone()],
+    };
+    let resources =
+        super::resources::check_scene(&water, &objects, &object_paths, characters.len(), map)?;
+
     Ok(Scene {
         name,
+        resources,
         path: map.file.to_path_buf(),
         timeline,
         camera_keys,
@@ -123,7 +134,7 @@ fn quality(raw: &RawScene, map: &SourceMap<'_>) -> Result<QualitySpec> {
     let path = KeyPath::root().key("quality");
     let max_error_px = raw.quality.as_ref().and_then(|q| q.max_error_px);
     if let Some(error_px) = max_error_px {
-        // NaN and infinities are refused before (check_numbers_finite), with their position.
+        // NaN and infinities are refused before (check_numbers), with their position.
         if !(error_px > 0.0 && error_px <= MAX_ERROR_PX_LIMIT) {
             return Err(map.error(
                 &path.key("max_error_px"),
@@ -138,7 +149,39 @@ fn quality(raw: &RawScene, map: &SourceMap<'_>) -> Result<QualitySpec> {
     Ok(QualitySpec { max_error_px })
 }
 
+/// The longest scene name, in bytes: output names add at most 32 more (`.<name>.0001.exr.tmp-<pid>`)
+/// and must stay under the 255 bytes file systems allow.
+pub(crate) const MAX_NAME_BYTES: usize = 100;
+
+/// Why `name` cannot name output files, if it cannot.
+pub(crate) fn name_problem(name: &str) -> Option<String> {
+    if name.is_empty() {
+        return Some("the name is empty".into());
+    }
+    if name.len() > MAX_NAME_BYTES {
+        return Some(format!(
+            "the name is {} bytes long, more than the {MAX_NAME_BYTES} an output file name can carry",
+            name.len()
+        ));
+    }
+    if let Some(c) = name
+        .chars()
+        .find(|c| c.is_control() || "/\\:*?\"<>|".contains(*c))
+    {
+        return Some(format!(
+            "the name contains {c:?}, which cannot be part of a portable file name"
+        ));
+    }
+    if name.starts_with(['.', '-']) || name.ends_with([' ', '.']) || name.trim() != name {
+        return Some(
+            "the name starts with '.' or '-', or starts or ends with a space or a '.'".into(),
+        );
+    }
+    None
+}
+
 fn scene_name(name: Option<String>, map: &SourceMap<'_>) -> Result<String> {
+    let from_file = name.is_none();
     let name = match name {
         Some(name) => name,
         None => map
@@ -146,11 +189,24 @@ fn scene_name(name: Option<String>, map: &SourceMap<'_>) -> Result<String> {
             .file_stem()
             .map_or_else(|| "scene".to_owned(), |s| s.to_string_lossy().into_owned()),
     };
-    if name.is_empty() || name.contains(['/', '\\']) {
+    if let Some(problem) = name_problem(&name) {
+        let shown: String = name.chars().take(40).collect();
+        let shown = if shown.len() < name.len() {
+            format!("{shown:?}...")
+        } else {
+            format!("{shown:?}")
+        };
+        let problem = if from_file {
+            format!("the scene is named after its file, {shown}, which cannot name output files: {problem}")
+        } else {
+            format!("{shown} cannot name output files: {problem}")
+        };
         return Err(map.error(
             &KeyPath::root().key("name"),
-            format!("{name:?} cannot name output files (it is empty or contains a path separator)"),
-            "set e.g. name = \"pool\"",
+            problem,
+            format!(
+                "set e.g. name = \"pool\" (at most {MAX_NAME_BYTES} bytes; letters, digits, spaces, '-', '_', '.')"
+            ),
         ));
     }
     Ok(name)
@@ -168,12 +224,13 @@ fn timeline(raw: &RawScene, map: &SourceMap<'_>) -> Result<Timeline> {
     }
     let [first, last] = raw.timeline.frames.unwrap_or(DEFAULT_FRAMES);
     let frames_path = path.key("frames");
-    if first < 0 || last < 0 || first > u32::MAX as i64 || last > u32::MAX as i64 {
+    // Each number's range was checked where it is written (limits::KEY_RANGES); this is the
+    // defaults' and the pair's check.
+    if first < 0 || last < 0 || first > MAX_FRAME_NUMBER || last > MAX_FRAME_NUMBER {
         return Err(map.error(
             &frames_path,
             format!(
-                "frame numbers must be between 0 and {} (got [{first}, {last}])",
-                u32::MAX
+                "frame numbers must be between 0 and {MAX_FRAME_NUMBER} (got [{first}, {last}])"
             ),
             "set e.g. frames = [1, 48]",
         ));
@@ -183,6 +240,16 @@ fn timeline(raw: &RawScene, map: &SourceMap<'_>) -> Result<Timeline> {
             &frames_path,
             format!("the frame range is empty: the last frame comes before the first (got [{first}, {last}])"),
             format!("write the first frame first, e.g. frames = [{last}, {first}]"),
+        ));
+    }
+    let frames = (last - first) as u64 + 1;
+    if frames > MAX_TIMELINE_FRAMES {
+        return Err(map.error(
+            &frames_path,
+            format!(
+                "the timeline has {frames} frames, more than the {MAX_TIMELINE_FRAMES} snell renders in one scene"
+            ),
+            format!("split the shot into scenes of at most {MAX_TIMELINE_FRAMES} frames"),
         ));
     }
     Ok(Timeline {
@@ -429,14 +496,18 @@ fn character(
 ) -> Result<CharacterSpec> {
     let folder = map.file.parent().unwrap_or(Path::new(""));
     let file = folder.join(&raw.file);
-    if !file.is_file() {
-        return Err(map.error(
-            &at.key("file"),
-            format!(
+    if let Err(error) = crate::files::check_regular(&file, crate::files::MAX_ASSET_BYTES) {
+        let problem = match error {
+            crate::files::InputFileError::NotFound(_) => format!(
                 "cannot find the glTF file {} (resolved against the scene's folder)",
                 file.display()
             ),
-            "check the path; it is relative to the scene file",
+            other => format!("cannot use the glTF file: {other}"),
+        };
+        return Err(map.error(
+            &at.key("file"),
+            problem,
+            "check the path; it is relative to the scene file and must name a .glb or .gltf file",
         ));
     }
     let animation = match &raw.animation {
@@ -606,7 +677,49 @@ fn camera_keys(
             fov_y_deg: fov_deg as f32,
         });
     }
+    check_interpolated_views(&keys, timeline, &path, map)?;
     Ok(keys)
+}
+
+/// The camera between keys is interpolated (eye and target separately): at no frame may the eye
+/// come onto its target, where the view has no direction. Straight up or down is fine (the camera
+/// has a stated fallback up vector). Every frame of the timeline is sampled, as a render would.
+fn check_interpolated_views(
+    keys: &[CameraKey],
+    timeline: &Timeline,
+    path: &KeyPath,
+    map: &SourceMap<'_>,
+) -> Result<()> {
+    let track = crate::timeline::CameraTrack::try_new(keys.to_vec()).map_err(|error| {
+        map.error(
+            path,
+            format!("the camera keys cannot be interpolated: {error}"),
+            "",
+        )
+    })?;
+    for frame in timeline.first_frame..=timeline.last_frame {
+        let time_secs = timeline.time_secs(frame);
+        let camera = track.sample(time_secs);
+        if camera.eye.distance(camera.target) >= 1e-4 {
+            continue;
+        }
+        // The key that ends the segment (or the last key).
+        let after = keys
+            .iter()
+            .position(|key| key.time_secs >= time_secs)
+            .unwrap_or(keys.len() - 1);
+        let before = after.saturating_sub(1);
+        return Err(map.error(
+            &path.index(after).key("target"),
+            format!(
+                "between camera keys {before} and {after} the interpolated eye reaches the target at frame {frame} \
+                 (t = {time_secs:.3} s, eye {:?}): the view has no direction there",
+                camera.eye.to_array()
+            ),
+            "move the keys' targets so the eye passes beside them, or add a key in between",
+        ));
+    }
+    Ok(())
 }
 
 /// A list of keyframes, for [`keyframe_time`]'s messages.
@@ -1170,14 +1283,18 @@ fn texture(
             };
             let folder = map.file.parent().unwrap_or(Path::new(""));
             let path = folder.join(written);
-            if !path.is_file() {
-                return Err(map.error(
-                    &image_at,
-                    format!(
+            if let Err(error) = crate::files::check_regular(&path, crate::files::MAX_ASSET_BYTES) {
+                let problem = match error {
+                    crate::files::InputFileError::NotFound(_) => format!(
                         "texture image {written:?} not found (looked for {})",
                         path.display()
                     ),
-                    "check the path, which is relative to the scene file's folder",
+                    other => format!("cannot use texture image {written:?}: {other}"),
+                };
+                return Err(map.error(
+                    &image_at,
+                    problem,
+                    "check the path, which is relative to the scene file's folder, and name a PNG or JPEG file",
                 ));
             }
             let size_m = raw.size_m.unwrap_or([1.0, 1.0]);

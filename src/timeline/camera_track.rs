@@ -97,12 +97,11 @@ impl CameraTrack {
     /// The camera at `time_secs` (up = +y): the first key before it, the last key after it.
     pub fn sample(&self, time_secs: f64) -> Camera {
         let state = self.sample_state(time_secs);
-        Camera {
-            eye: state.eye.as_vec3(),
-            target: state.target.as_vec3(),
-            up: Vec3::Y,
-            fov_y_deg: state.fov_y_deg as f32,
-        }
+        Camera::looking_at(
+            state.eye.as_vec3(),
+            state.target.as_vec3(),
+            state.fov_y_deg as f32,
+        )
     }
 
     fn sample_state(&self, time_secs: f64) -> CameraState {
@@ -166,13 +165,7 @@ fn validate_key(key: &CameraKey) -> Result<(), String> {
     if view.length() < 1e-6 {
         return Err("eye and target are the same point".to_string());
     }
-    // Up is +y: a view along it has no defined roll (look_at degenerates).
-    if view.normalize().y.abs() > 0.9999 {
-        return Err(
-            "the camera looks straight up or down; move the target sideways a little (up is +y)"
-                .to_string(),
-        );
-    }
+    // A view along +y (straight up or down) takes the camera's stated fallback up vector.
     Ok(())
 }
 
@@ -395,6 +388,45 @@ mod tests {
         }
     }
 
+    /// Two legal keys on either side of the target: half way the eye passes straight over it,
+    /// looking down. Every matrix on the way is finite and the picture's top points along +z
+    /// there (the stated fallback), never a NaN camera.
+    #[test]
+    fn keys_passing_over_the_target_never_give_a_nan_matrix() {
+        for (from, to) in [
+            ([-3.0, 3.0, 0.0], [3.0, 3.0, 0.0]),
+            ([0.0, 3.0, -3.0], [0.0, 3.0, 3.0]),
+            ([-2.0, 3.0, -2.0], [2.0, 3.0, 2.0]),
+        ] {
+            let track = CameraTrack::new(vec![
+                key(0.0, from, [0.0, -1.0, 0.0], 50.0),
+                key(2.0, to, [0.0, -1.0, 0.0], 50.0),
+            ]);
+            let middle = track.sample(1.0);
+            assert!(
+                middle.eye.x.abs() < 1e-6 && middle.eye.z.abs() < 1e-6,
+                "the path passes over the target: {middle:?}"
+            );
+            assert_eq!(middle.up, Vec3::Z);
+            for step in 0..=2000 {
+                let camera = track.sample(step as f64 / 1000.0);
+                let matrix = camera.clip_from_world(1280, 720);
+                assert!(
+                    matrix.is_finite(),
+                    "t = {}: {camera:?}",
+                    step as f64 / 1000.0
+                );
+                let pixel = camera
+                    .pixel_of(Vec3::new(0.0, -1.0, 0.0), 1280, 720)
+                    .unwrap();
+                assert!(
+                    (pixel - glam::Vec2::new(640.0, 360.0)).length() < 1e-2,
+                    "{pixel}"
+                );
+            }
+        }
+    }
+
     #[test]
     fn one_key_is_a_static_camera() {
         let only = key(3.0, [1.0, 2.0, 3.0], [0.0, 0.0, 0.0], 50.0);
@@ -433,12 +465,11 @@ mod tests {
             .unwrap_err()
             .to_string()
             .contains("finite"));
+        // Looking straight down is no error: the camera takes its stated fallback up vector.
         let mut keys = orbit_keys();
         keys[0].target = keys[0].eye - Vec3::Y;
-        assert!(CameraTrack::try_new(keys)
-            .unwrap_err()
-            .to_string()
-            .contains("straight up or down"));
+        let track = CameraTrack::try_new(keys).unwrap();
+        assert_eq!(track.sample(2.5).up, Vec3::Z);
         let mut keys = orbit_keys();
         keys[0].target = keys[0].eye;
         assert!(CameraTrack::try_new(keys)

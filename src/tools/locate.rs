@@ -140,9 +140,16 @@ pub fn locate(
 /// header; blank lines and lines starting with `#` are skipped. Anything else that is not three
 /// finite numbers is an error naming the file and line.
 pub fn read_points_csv(path: &Path) -> Result<Vec<Vec3>, ToolError> {
-    let text = std::fs::read_to_string(path).map_err(|error| ToolError::InputFile {
+    let bytes =
+        crate::files::read_regular(path, crate::files::MAX_POINTS_BYTES).map_err(|error| {
+            ToolError::InputFile {
+                path: path.to_path_buf(),
+                problem: format!("cannot read the points file: {error}"),
+            }
+        })?;
+    let text = String::from_utf8(bytes).map_err(|error| ToolError::InputFile {
         path: path.to_path_buf(),
-        problem: format!("cannot read the points file: {error}"),
+        problem: format!("the points file is not UTF-8 text: {error}"),
     })?;
     parse_points_csv(&text, path)
 }

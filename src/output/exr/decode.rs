@@ -42,16 +42,22 @@ fn read_error_of(path: &Path) -> impl Fn(String) -> OutputError + '_ {
     }
 }
 
+/// The largest EXR file read (a 16K x 16K frame of every layer, uncompressed, is under 12 GiB).
+const MAX_EXR_BYTES: u64 = 16 << 30;
+
 /// Reads all of `path` (the largest level, no deep data); an error if it has no image part.
 fn read_image(path: &Path) -> Result<AnyImage, OutputError> {
     let read_error = read_error_of(path);
+    // A FIFO or a device given as a frame would block or never end: only regular files are read.
+    let file =
+        crate::files::open_regular(path, MAX_EXR_BYTES).map_err(|e| read_error(e.to_string()))?;
     let image = ::exr::prelude::read()
         .no_deep_data()
         .largest_resolution_level()
         .all_channels()
         .all_layers()
         .all_attributes()
-        .from_file(path)
+        .from_buffered(std::io::BufReader::new(file))
         .map_err(|error| read_error(format!("OpenEXR decoding: {error}")))?;
     if image.layer_data.is_empty() {
         return Err(read_error("the file has no image part".into()));

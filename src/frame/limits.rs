@@ -1,0 +1,193 @@
+//! The frame stage's part of the resource estimate (see [`crate::scene::resources`]): the loaded
+//! characters (posed vertices, how far they reach, materials), the textures, the ripple work of a
+//! frame, and the image size of a render, each checked against its stated limit before the work
+//! starts. Also the check of each frame's posed characters (finite, inside the world) and of the
+//! largest image the GPU stage can read back.
+
+use super::characters::Character;
+use super::{Method, SnellError};
+use crate::mesh::{Object, Texture};
+use crate::scene::limits::GEOMETRY_LIMIT_M;
+use crate::scene::resources::{
+    self, human_bytes, Estimate, MAX_OBJECTS, MAX_RIPPLE_NODE_STEPS, MEMORY_LIMIT_VARIABLE,
+};
+use crate::scene::Scene;
+
+/// Bytes the GPU stage reads back per pixel: beauty (float32 RGBA), position (float32 RGBA) and
+/// flags (u32), one buffer for the whole frame.
+const READBACK_BYTES_PER_PIXEL: u64 = 16 + 16 + 4;
+
+/// The largest readback buffer the renderer asks the device for (wgpu's default
+/// `max_buffer_size`, which the renderer keeps).
+fn max_readback_bytes() -> u64 {
+    wgpu::Limits::default().max_buffer_size
+}
+
+/// A frame of `width` x `height` must fit the GPU stage's single readback buffer: until frames
+/// render in strips, a larger one is refused here (exit 2), before any work, instead of failing
+/// inside the driver. The ray-traced methods read nothing back and take any size.
+pub fn check_image_size(method: Method, width: u32, height: u32) -> Result<(), SnellError> {
+    if !method.uses_gpu() {
+        return Ok(());
+    }
+    let pixels = width as u64 * height as u64;
+    let max = max_readback_bytes();
+    if pixels * READBACK_BYTES_PER_PIXEL <= max {
+        return Ok(());
+    }
+    let max_pixels = max / READBACK_BYTES_PER_PIXEL;
+    // The largest 16:9 image within it, for the suggestion.
+    let max_height = ((max_pixels as f64 * 9.0 / 16.0).sqrt().floor() as u64 / 2 * 2).max(2);
+    let max_width = max_height * 16 / 9 / 2 * 2;
+    Err(SnellError::Argument(format!(
+        "--size {width}x{height}: a frame of {pixels} pixels needs {} of GPU readback \
+         ({READBACK_BYTES_PER_PIXEL} bytes a pixel), and the renderer reads a frame back in one \
+         buffer of at most {}, so at most {max_pixels} pixels; choose a smaller size, e.g. \
+         --size {max_width}x{max_height}, or --method raytrace (no readback)",
+        human_bytes(pixels * READBACK_BYTES_PER_PIXEL),
+        human_bytes(max),
+    )))
+}
+
+/// The scene's estimate with the loaded characters and the textures added, checked: vertex
+/// count, reach and material count of each character, and the ripple work of a frame.
+pub fn check_loaded(
+    scene: &Scene,
+    characters: &[Character],
+    textures: &[Texture],
+    ripple_node_steps: u64,
+) -> Result<Estimate, SnellError> {
+    let mut estimate = scene.resources;
+    let mut counts = Vec::new();
+    let mut drawn = scene.resources.objects as usize;
+    for character in characters {
+        let spec = &character.spec;
+        let meshes = character.asset.stored_primitives();
+        let vertices: u64 = meshes.iter().map(|(_, m)| m.positions.len() as u64).sum();
+        let triangles: u64 = meshes.iter().map(|(_, m)| m.triangles.len() as u64).sum();
+        counts.push((spec.file_source.clone(), vertices, triangles));
+        // One object per drawn primitive (the scene's check counted each character as one).
+        drawn += meshes.len().saturating_sub(1);
+        if drawn > MAX_OBJECTS {
+            return Err(spec
+                .file_source
+                .error(
+                    format!(
+                        "with this model's {} primitives the scene draws {drawn} objects, more than the \
+                         {MAX_OBJECTS} the renderer's material table holds",
+                        meshes.len()
+                    ),
+                    "use a model with fewer meshes and materials",
+                )
+                .into());
+        }
+        // How far the model reaches in its rest pose, scaled, from the farthest root-path key.
+        let model_reach = character
+            .asset
+            .posed_primitives(&character.asset.bind_pose(), glam::Mat4::IDENTITY)
+            .iter()
+            .flat_map(|p| p.mesh.positions.iter().map(|v| v.length() as f64))
+            .fold(0.0, f64::max)
+            * spec.scale;
+        let root_reach = spec
+            .path
+            .iter()
+            .flat_map(|key| key.position_m.map(f64::abs))
+            .fold(0.0, f64::max);
+        let reach = model_reach + root_reach;
+        if reach.is_nan() || reach > GEOMETRY_LIMIT_M {
+            return Err(spec
+                .file_source
+                .error(
+                    format!(
+                        "at scale = {} the model reaches {reach:.3e} m from the origin (its rest pose is \
+                         {:.3e} m across from its root), beyond the {GEOMETRY_LIMIT_M} m every vertex \
+                         must stay within",
+                        spec.scale,
+                        2.0 * model_reach
+                    ),
+                    "set the character's scale to the file's units (e.g. scale = 0.01 for centimetres)",
+                )
+                .into());
+        }
+    }
+    resources::check_characters(&mut estimate, &counts)?;
+    estimate.objects = drawn as u64;
+    // Textures as decoded, and again in the GPU's array (every layer at the largest size, with
+    // mipmaps: 4/3).
+    let (max_w, max_h) = textures.iter().fold((1u64, 1u64), |(w, h), t| {
+        (w.max(t.width as u64), h.max(t.height as u64))
+    });
+    let decoded: u64 = textures.iter().map(|t| t.rgba8_srgb.len() as u64).sum();
+    estimate.texture_bytes = decoded + (textures.len().max(2) as u64) * max_w * max_h * 4 * 4 / 3;
+    if ripple_node_steps > MAX_RIPPLE_NODE_STEPS {
+        let path = crate::scene::SourceRef {
+            file: scene.path.clone(),
+            line: 1,
+            column: 1,
+            key: "water.ripples".into(),
+        };
+        return Err(path
+            .error(
+                format!(
+                    "the ripples need {ripple_node_steps} node updates a frame ({} nodes, stepped within \
+                     their stability limit at {} fps), more than {MAX_RIPPLE_NODE_STEPS}",
+                    estimate.ripple_nodes, scene.timeline.fps
+                ),
+                "use fewer ripple nodes, a lower speed_m_per_s or a higher fps",
+            )
+            .into());
+    }
+    Ok(estimate)
+}
+
+/// The whole estimate of a frame at `width` x `height` against the memory limit, and the GPU's
+/// readback limit: both before any frame is made.
+pub fn check_frame(
+    estimate: &Estimate,
+    method: Method,
+    width: u32,
+    height: u32,
+) -> Result<Estimate, SnellError> {
+    check_image_size(method, width, height)?;
+    let mut estimate = *estimate;
+    estimate.pixels = width as u64 * height as u64;
+    let limit = resources::memory_limit().map_err(SnellError::Argument)?;
+    if estimate.bytes() > limit {
+        return Err(SnellError::Argument(format!(
+            "a frame of this scene at {width}x{height} needs about {} ({}), more than the memory \
+             limit of {}; render smaller (--size), lighten the scene, or raise the limit with \
+             {MEMORY_LIMIT_VARIABLE} (e.g. {MEMORY_LIMIT_VARIABLE}=16G)",
+            human_bytes(estimate.bytes()),
+            estimate.describe(),
+            human_bytes(limit)
+        )));
+    }
+    Ok(estimate)
+}
+
+/// Every vertex of `posed` (a frame's posed characters) finite and inside the world: an
+/// animation that throws a vertex to 1e30 m is refused at its frame, before it reaches the
+/// ripples or the refraction search.
+pub fn check_posed(scene: &Scene, frame: u32, posed: &[Object]) -> Result<(), SnellError> {
+    for object in posed {
+        if let Some(vertex) = object
+            .mesh
+            .positions
+            .iter()
+            .find(|p| !p.is_finite() || p.abs().max_element() as f64 > GEOMETRY_LIMIT_M)
+        {
+            return Err(SnellError::Frame {
+                scene: scene.path.clone(),
+                frame,
+                problem: format!(
+                    "{} is posed with a vertex at {:?}, outside the {GEOMETRY_LIMIT_M} m every vertex must \
+                     stay within; check the model's animation and the character's scale and path",
+                    object.name,
+                    vertex.to_array()
+                ),
+            });
+        }
+    }
+    Ok(())
+}
