@@ -38,7 +38,7 @@ pub fn install(resume_hint: String) -> std::io::Result<&'static AtomicBool> {
                 }
                 FIRST_SIGNAL.store(signal, Ordering::SeqCst);
                 STOP.store(true, Ordering::SeqCst);
-                eprintln!(
+                errln!(
                     "\nsnell: {} received: stopping after the frame in flight is written \
                      (press Ctrl-C again to stop at once)",
                     signal_name(signal)
@@ -51,14 +51,14 @@ pub fn install(resume_hint: String) -> std::io::Result<&'static AtomicBool> {
 /// The second signal: no frame is finished; temporary files go, complete frames stay.
 fn stop_at_once(signal: i32) -> ! {
     let removed = crate::output::temporary::remove_all_and_refuse_new();
-    eprintln!(
+    errln!(
         "\nsnell: {} again: stopped at once (removed {} temporary file(s); frames already \
          written are complete)",
         signal_name(signal),
         removed.len()
     );
     if let Some(hint) = RESUME_HINT.get() {
-        eprintln!("to finish: {hint}");
+        errln!("to finish: {hint}");
     }
     std::process::exit(exit_code_for(signal).into())
 }

@@ -29,6 +29,8 @@
 //! [`frame`] ties the stages together: one `render_frame` entry point used identically by the CLI
 //! and by the tests. [`interrupt`] turns Ctrl-C into a stop after the frame in flight.
 
+#[macro_use]
+pub mod console;
 pub mod accuracy;
 pub mod camera;
 pub mod character;
@@ -42,6 +44,7 @@ pub mod gpu;
 pub mod interrupt;
 pub mod mesh;
 pub mod output;
+pub mod panics;
 pub mod preview;
 pub mod reference;
 pub mod refraction;

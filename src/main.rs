@@ -7,6 +7,7 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 
 use snell::frame::{self, FrameRange, Method, RenderJob, SnellError};
+use snell::{errln, out, outln};
 
 #[derive(Parser)]
 #[command(
@@ -286,14 +287,62 @@ fn main() -> ExitCode {
     )
     .init();
     quiet_vulkan_runtime_dir();
-    let cli = Cli::parse();
+    snell::panics::install_hook();
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        // --help and --version print to stdout, usage errors to stderr (exit 2), each through
+        // the console so a closed pipe or a full disk is no panic.
+        Err(error) if error.use_stderr() => {
+            snell::err!("{}", error.render());
+            return ExitCode::from(error.exit_code().clamp(0, 255) as u8);
+        }
+        Err(error) => {
+            out!("{}", error.render());
+            return finish(0, true);
+        }
+    };
+    // Whether the command's product is what it prints (then a failed stdout fails it).
+    let prints_its_product = !matches!(
+        cli.command,
+        Command::Render { .. } | Command::Preview { .. } | Command::Chart { .. }
+    );
+    let code = match snell::panics::catch(|| run(cli)) {
+        Ok(code) => code,
+        Err(message) => {
+            let error = SnellError::Internal {
+                frame: None,
+                message,
+            };
+            errln!("error: {error}");
+            1
+        }
+    };
+    finish(code, prints_its_product)
+}
+
+/// The exit code once stdout's fate is known: a command whose output could not be written
+/// (a closed pipe, a full disk) did not do its work and exits 1, quietly for a closed pipe; a
+/// render whose frames are written keeps its code.
+fn finish(code: u8, prints_its_product: bool) -> ExitCode {
+    match snell::console::stdout_failure() {
+        Some(kind) if prints_its_product && code == 0 => {
+            if kind != std::io::ErrorKind::BrokenPipe {
+                errln!("error: cannot write the output to stdout: {kind}");
+            }
+            ExitCode::from(1)
+        }
+        _ => ExitCode::from(code),
+    }
+}
+
+fn run(cli: Cli) -> u8 {
     let result = match cli.command {
-        Command::Diff(args) => return ExitCode::from(snell::check::cli::run_diff(&args)),
-        Command::Check(args) => return ExitCode::from(snell::check::cli::run_check(&args)),
-        Command::Accuracy(args) => return ExitCode::from(snell::accuracy::cli::run(&args)),
-        Command::Locate(args) => return ExitCode::from(snell::tools::cli::run_locate(&args)),
-        Command::Compare(args) => return ExitCode::from(snell::tools::cli::run_compare(&args)),
-        Command::Export(args) => return ExitCode::from(snell::tools::cli::run_export(&args)),
+        Command::Diff(args) => return snell::check::cli::run_diff(&args),
+        Command::Check(args) => return snell::check::cli::run_check(&args),
+        Command::Accuracy(args) => return snell::accuracy::cli::run(&args),
+        Command::Locate(args) => return snell::tools::cli::run_locate(&args),
+        Command::Compare(args) => return snell::tools::cli::run_compare(&args),
+        Command::Export(args) => return snell::tools::cli::run_export(&args),
         Command::Render {
             scene,
             frames,
@@ -343,13 +392,13 @@ fn main() -> ExitCode {
         } => bench(json, &scene, &characters_scene, &skinning_model, frames),
     };
     match result {
-        Ok(()) => ExitCode::SUCCESS,
+        Ok(()) => 0,
         Err(error) => {
-            eprintln!("error: {error}");
+            errln!("error: {error}");
             if error.is_bad_input() {
-                ExitCode::from(2)
+                2
             } else {
-                ExitCode::from(1)
+                1
             }
         }
     }
@@ -410,7 +459,7 @@ fn render(
     let out_dir = out.unwrap_or_else(|| PathBuf::from("output").join(job.scene_name()));
     if let Some(max_error_px) = job.scene.quality.max_error_px {
         if method_arg.is_some() {
-            eprintln!(
+            errln!(
                 "note: --method {} given: the scene's max_error_px = {max_error_px} is not applied",
                 method.name()
             );
@@ -421,7 +470,7 @@ fn render(
             if let Some(choice) =
                 snell::chart::budget::apply_budget(&mut job, width, height, &out_dir, true)?
             {
-                println!("{}", choice.describe());
+                outln!("{}", choice.describe());
             }
         }
     }
@@ -449,7 +498,7 @@ fn render(
     let stop = match snell::interrupt::install(resume_command.clone()) {
         Ok(flag) => Some(flag),
         Err(error) => {
-            eprintln!("warning: cannot handle Ctrl-C ({error}): it will stop the render at once");
+            errln!("warning: cannot handle Ctrl-C ({error}): it will stop the render at once");
             None
         }
     };
@@ -465,7 +514,7 @@ fn render(
     })?;
     if outcome.interrupted {
         let done = outcome.done();
-        eprintln!(
+        errln!(
             "interrupted: {} of {} frame(s) done in {} ({}); not rendered: {}",
             done.len(),
             range.len(),
@@ -473,19 +522,19 @@ fn render(
             frame::resume::frame_list(&done),
             frame::resume::frame_list(&outcome.remaining)
         );
-        eprintln!("to finish: {resume_command}");
+        errln!("to finish: {resume_command}");
         // Every file is closed and renamed into place: nothing is lost by exiting here.
         std::process::exit(snell::interrupt::exit_code().unwrap_or(130).into());
     }
     if outcome.rendered.is_empty() {
-        eprintln!(
+        errln!(
             "nothing to render: the {} frame(s) of {} at {width}x{height} in {} are complete",
             outcome.skipped.len(),
             job.scene_name(),
             out_dir.display()
         );
     } else {
-        eprintln!(
+        errln!(
             "rendered {} frame(s) of {} at {width}x{height} into {} ({:.2} s per frame){}",
             outcome.rendered.len(),
             job.scene_name(),
@@ -515,14 +564,14 @@ fn preview(
     options.out_dir = out;
     let server = snell::preview::PreviewServer::start(options)?;
     // The first line on stdout is the address (tests and scripts read it); flushed at once.
-    println!(
+    outln!(
         "snell preview: {} on {}",
         scene_path.display(),
         server.url()
     );
     use std::io::Write;
     let _ = std::io::stdout().flush();
-    eprintln!(
+    errln!(
         "open {} in a browser; Ctrl-C stops the preview",
         server.url()
     );
@@ -602,7 +651,7 @@ fn chart(
             progress: true,
         },
     )?;
-    print!("{}", outcome.summary(scene_resolution));
+    out!("{}", outcome.summary(scene_resolution));
     Ok(())
 }
 
@@ -650,7 +699,7 @@ fn stability(
 
 fn info(scene_path: &Path) -> Result<(), SnellError> {
     let job = RenderJob::prepare(scene_path)?;
-    print!("{}", job.describe());
+    out!("{}", job.describe());
     Ok(())
 }
 
@@ -670,12 +719,12 @@ fn bench(
     if json {
         let mut value = serde_json::to_value(&figures).expect("figures serialise");
         value["preview"] = serde_json::to_value(&scrub).expect("figures serialise");
-        println!(
+        outln!(
             "{}",
             serde_json::to_string_pretty(&value).expect("figures serialise")
         );
     } else {
-        print!("{}{}", figures.to_text(), scrub.to_text());
+        out!("{}{}", figures.to_text(), scrub.to_text());
     }
     Ok(())
 }

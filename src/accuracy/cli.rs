@@ -103,7 +103,7 @@ pub fn run(args: &AccuracyArgs) -> u8 {
     match run_inner(args) {
         Ok(()) => 0,
         Err(error) => {
-            eprintln!("error: {error}");
+            errln!("error: {error}");
             if error.is_bad_input() {
                 2
             } else {
@@ -158,7 +158,7 @@ fn run_inner(args: &AccuracyArgs) -> Result<(), AccuracyError> {
             file.write_all(csv.as_bytes())
                 .map_err(|error| error.to_string())
         })?;
-        eprintln!("wrote {}", path.display());
+        errln!("wrote {}", path.display());
     }
     Ok(())
 }

@@ -131,7 +131,7 @@ pub fn run_check(args: &CheckArgs) -> u8 {
     match check(args) {
         Ok(code) => code,
         Err(error) => {
-            eprintln!("error: {error}");
+            errln!("error: {error}");
             Verdict::Fail.exit_code()
         }
     }
@@ -163,7 +163,7 @@ fn check(args: &CheckArgs) -> Result<u8, CheckError> {
     };
     if args.bless {
         let written = request.bless()?;
-        eprintln!(
+        errln!(
             "blessed {} golden frame(s) of {} at {}x{} in {}",
             written.len(),
             job.scene_name(),
@@ -173,7 +173,7 @@ fn check(args: &CheckArgs) -> Result<u8, CheckError> {
         );
         return Ok(Verdict::Pass.exit_code());
     }
-    eprintln!(
+    errln!(
         "checking {} frame(s) of {} at {}x{} against {}",
         range.len(),
         job.scene_name(),
@@ -196,20 +196,20 @@ fn finish(
     let report = match result {
         Ok(report) => report,
         Err(error) => {
-            eprintln!("error: {error}");
+            errln!("error: {error}");
             return Verdict::Fail.exit_code();
         }
     };
-    print!("{}", report.table());
+    out!("{}", report.table());
     let verdict = report.verdict();
     let mut summary = report.summary();
     if report.frames.iter().any(|frame| frame.heatmap.is_some()) {
         summary.push_str(&format!("; FLIP heat maps in {}", heatmap_dir.display()));
     }
-    println!("{summary}");
+    outln!("{summary}");
     if let Some(path) = junit_path {
         if let Err(error) = junit::write_junit(path, suite_name, &report) {
-            eprintln!("error: {error}");
+            errln!("error: {error}");
             return Verdict::Fail.exit_code();
         }
     }

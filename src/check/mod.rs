@@ -456,6 +456,9 @@ pub fn compare_frames(
         });
         return (None, counts, findings, None);
     }
+    if let Some(finding) = new_non_finite(r, t) {
+        findings.push(finding);
+    }
     let flip = flip_ldr(&tonemap_srgb8(r, 0.0), &tonemap_srgb8(t, 0.0))
         .expect("sizes were checked equal above");
     let depth = layer_difference(seen_depths(r), seen_depths(t), thresholds.depth_tolerance_m);
@@ -517,6 +520,46 @@ pub fn compare_frames(
         position,
     };
     (Some(metrics), counts, findings, Some(flip.error_map_png))
+}
+
+/// NaN or infinite samples in `test` where `reference` has finite ones: always a failure, however
+/// few (tone mapping and the tolerance fractions would let a single NaN pixel pass).
+fn new_non_finite(
+    reference: &crate::draw::RenderedFrame,
+    test: &crate::draw::RenderedFrame,
+) -> Option<Finding> {
+    let finite = |values: &[f32]| values.iter().all(|v| v.is_finite());
+    let mut counts = [0usize; 3];
+    let mut first = None;
+    for i in 0..reference.beauty_rgba.len().min(test.beauty_rgba.len()) {
+        let layers = [
+            finite(&reference.beauty_rgba[i]) && !finite(&test.beauty_rgba[i]),
+            reference.depth_m.get(i).is_some_and(|z| z.is_finite())
+                && test.depth_m.get(i).is_some_and(|z| !z.is_finite()),
+            reference.position.get(i).is_some_and(|p| finite(p))
+                && test.position.get(i).is_some_and(|p| !finite(p)),
+        ];
+        for (count, bad) in counts.iter_mut().zip(layers) {
+            if bad {
+                *count += 1;
+                first.get_or_insert(i);
+            }
+        }
+    }
+    let first = first?;
+    let width = test.width.max(1) as usize;
+    Some(Finding {
+        verdict: Verdict::Fail,
+        message: format!(
+            "non-finite values where the reference has finite ones: {} beauty, {} Z and {} P pixel(s), \
+             the first at ({}, {})",
+            counts[0],
+            counts[1],
+            counts[2],
+            first % width,
+            first / width
+        ),
+    })
 }
 
 /// Per-pixel difference of a layer of `N` components: Euclidean distance against `tolerance_m`.
@@ -866,6 +909,33 @@ mod tests {
         );
         assert_eq!(counts, CountsComparison::Equal);
         assert!(findings.is_empty(), "{findings:?}");
+    }
+
+    /// One NaN beauty pixel in 512 passes every FLIP and fraction threshold, yet must fail.
+    #[test]
+    fn a_single_nan_where_the_reference_is_finite_fails() {
+        let counts = serde_json::json!({"vertices": {"popping": 0}});
+        let a = loaded(frame(32, 16), counts.clone());
+        for layer in 0..3 {
+            let mut bad = frame(32, 16);
+            match layer {
+                0 => bad.beauty_rgba[37][2] = f32::NAN,
+                1 => bad.depth_m[37] = f32::NAN,
+                _ => bad.position[37][0] = f32::INFINITY,
+            }
+            let b = loaded(bad, counts.clone());
+            let (_, _, findings, _) = compare_frames(&a, &b, &Thresholds::default());
+            let failure = findings
+                .iter()
+                .find(|f| f.verdict == Verdict::Fail)
+                .unwrap_or_else(|| panic!("layer {layer}: {findings:?}"));
+            assert!(
+                failure.message.contains("non-finite") && failure.message.contains("(5, 1)"),
+                "{}",
+                failure.message
+            );
+        }
+        // Sky stays sky: +inf and NaN on both sides are no failure (the identical-frames test).
     }
 
     #[test]

@@ -5,6 +5,7 @@
 
 pub mod bench;
 pub mod characters;
+pub mod finite;
 pub mod inputs;
 pub mod limits;
 pub mod resume;
@@ -46,6 +47,20 @@ pub enum SnellError {
     /// Simulation checkpoints cannot be written where the output goes.
     #[error("{0}")]
     Checkpoint(#[from] crate::sim::CheckpointError),
+    /// A bug: a panic inside snell or a library while making a frame (or, without a frame, a
+    /// command), caught and reported instead of a backtrace.
+    #[error("{}internal error: {message}; this is a bug in snell, please report it with the scene and the command", .frame.map_or_else(String::new, |f| format!("frame {f}: ")))]
+    Internal { frame: Option<u32>, message: String },
+    /// A rendered frame has a non-finite sample where the channel map allows none: it is not
+    /// written.
+    #[error("frame {frame}: pixel ({x}, {y}) has {layer} = {value}, not a finite number where the pixel sees something; the frame is not written (a bug in snell: please report it with the scene and the command)")]
+    NonFinite {
+        frame: u32,
+        x: u32,
+        y: u32,
+        layer: &'static str,
+        value: String,
+    },
     /// The scene is valid as a file but a frame cannot be rendered from it.
     #[error("{scene}: frame {frame}: {problem}")]
     Frame {
@@ -62,7 +77,9 @@ impl SnellError {
             SnellError::Scene(_) | SnellError::Argument(_) | SnellError::Frame { .. } => true,
             SnellError::Checkpoint(error) => error.is_bad_input(),
             SnellError::Output(error) => error.is_bad_input(),
-            SnellError::Gpu(_) => false,
+            SnellError::Gpu(_) | SnellError::Internal { .. } | SnellError::NonFinite { .. } => {
+                false
+            }
         }
     }
 }
@@ -551,6 +568,18 @@ impl RenderJob {
         previous: Option<&VertexTracking>,
     ) -> Result<RefractedFrame, SnellError> {
         self.check_frame_resources(width, height)?;
+        catch_frame(frame, || {
+            self.refract_caught(frame, width, height, previous)
+        })
+    }
+
+    fn refract_caught(
+        &self,
+        frame: u32,
+        width: u32,
+        height: u32,
+        previous: Option<&VertexTracking>,
+    ) -> Result<RefractedFrame, SnellError> {
         let mut stage_secs = BTreeMap::new();
         let water = self.frame_water(frame, &mut stage_secs)?;
         if self.method.traced_water().is_some() {
@@ -648,11 +677,25 @@ impl RenderJob {
         width: u32,
         height: u32,
     ) -> Result<RenderedFrame, SnellError> {
+        let frame = refracted.frame;
+        let renderer = renderer.into();
+        catch_frame(frame, || {
+            self.render_caught(renderer, refracted, width, height)
+        })
+    }
+
+    fn render_caught(
+        &self,
+        renderer: Option<&mut Renderer>,
+        refracted: &mut RefractedFrame,
+        width: u32,
+        height: u32,
+    ) -> Result<RenderedFrame, SnellError> {
         let clock = Instant::now();
         let rendered = if refracted.trace.is_some() {
             self.trace_refracted(refracted, width, height)?.rendered
         } else {
-            let renderer = renderer.into().ok_or_else(|| {
+            let renderer = renderer.ok_or_else(|| {
                 SnellError::Argument(format!(
                     "method {} draws on the GPU, but no renderer was given",
                     self.method.name()
@@ -678,6 +721,15 @@ impl RenderJob {
         refracted
             .stage_secs
             .insert("render".to_string(), clock.elapsed().as_secs_f64());
+        if let Some((x, y, layer, value)) = finite::first_non_finite(&rendered) {
+            return Err(SnellError::NonFinite {
+                frame: refracted.frame,
+                x,
+                y,
+                layer,
+                value,
+            });
+        }
         Ok(rendered)
     }
 
@@ -848,6 +900,19 @@ impl RenderJob {
         let _ = writeln!(text, "adapter    {adapter}");
         text
     }
+}
+
+/// Runs one frame's `work`; a panic inside it becomes [`SnellError::Internal`] naming the frame.
+fn catch_frame<T>(
+    frame: u32,
+    work: impl FnOnce() -> Result<T, SnellError>,
+) -> Result<T, SnellError> {
+    crate::panics::catch(work).unwrap_or_else(|message| {
+        Err(SnellError::Internal {
+            frame: Some(frame),
+            message,
+        })
+    })
 }
 
 /// The scene file's wave (direction in degrees) as the water stage's wave (unit direction).

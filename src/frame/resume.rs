@@ -241,7 +241,7 @@ pub fn plan_resume(
 
 /// Notes for the user about the output folder (removed leftovers); printed as they come.
 fn note(text: &str) {
-    eprintln!("note: {text}");
+    errln!("note: {text}");
 }
 
 fn paths_list(paths: &[PathBuf]) -> String {
@@ -290,7 +290,7 @@ impl RenderJob {
         let plan = resume.then(|| plan_resume(self, range, width, height, out_dir, &report));
         let (to_render, skipped): (Vec<u32>, Vec<u32>) = match &plan {
             Some(plan) => {
-                eprintln!("{}", plan.summary());
+                errln!("{}", plan.summary());
                 (
                     plan.render.iter().map(|(frame, _)| *frame).collect(),
                     plan.skip.clone(),
@@ -360,9 +360,15 @@ impl RenderJob {
                     bar.inc(1);
                 }
                 drop(sender);
-                let written = writer
-                    .join()
-                    .expect("the frame writer thread does not panic");
+                let written = writer.join().unwrap_or_else(|payload| {
+                    Err(SnellError::Internal {
+                        frame: None,
+                        message: format!(
+                            "the frame writer failed: {}",
+                            crate::panics::describe(payload.as_ref())
+                        ),
+                    })
+                });
                 match render_error {
                     Some(error) => Err(error),
                     None => written,

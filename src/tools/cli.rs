@@ -83,7 +83,7 @@ fn exit_code(result: Result<(), ToolError>) -> u8 {
     match result {
         Ok(()) => 0,
         Err(error) => {
-            eprintln!("error: {error}");
+            errln!("error: {error}");
             if error.is_bad_input() {
                 2
             } else {
@@ -112,9 +112,9 @@ fn locate_command(args: &LocateArgs) -> Result<(), ToolError> {
     let job = prepare(&args.scene, Some(&args.method))?;
     let located = locate::locate(&job, args.frame, &points)?;
     let (csv, notes) = locate::format_located(&located);
-    print!("{csv}");
+    out!("{csv}");
     for note in notes {
-        eprintln!("note: {note}");
+        errln!("note: {note}");
     }
     Ok(())
 }
@@ -126,12 +126,12 @@ pub fn run_compare(args: &CompareArgs) -> u8 {
 fn compare_command(args: &CompareArgs) -> Result<(), ToolError> {
     let comparison = compare::compare_files(&args.a, &args.b, args.flags_from)?;
     if args.json {
-        println!(
+        outln!(
             "{}",
             serde_json::to_string_pretty(&comparison).expect("comparison serialises")
         );
     } else {
-        print!("{}", comparison.to_text());
+        out!("{}", comparison.to_text());
     }
     Ok(())
 }
@@ -146,9 +146,9 @@ fn export_command(args: &ExportArgs) -> Result<(), ToolError> {
     let job = prepare(&args.scene, None)?;
     let summary = export::export_frame(&job, args.frame, &args.out, format, size)?;
     for file in &summary.files {
-        println!("{}", file.display());
+        outln!("{}", file.display());
     }
-    eprintln!(
+    errln!(
         "exported frame {} of {}: {} objects (water included), {} vertices, {} triangles into {}",
         args.frame,
         job.scene_name(),
