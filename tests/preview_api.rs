@@ -138,15 +138,38 @@ fn frames_equal_the_renderers_and_bad_requests_are_4xx() {
         .url()
         .trim_start_matches("http://")
         .trim_end_matches('/');
-    let mut stream = std::net::TcpStream::connect(authority).unwrap();
-    write!(
-        stream,
-        "POST /api/frame/1.png HTTP/1.1\r\nHost: x\r\nContent-Length: 0\r\nConnection: close\r\n\r\n"
-    )
-    .unwrap();
-    let mut reply = String::new();
-    stream.read_to_string(&mut reply).unwrap();
+    let raw = |request: String| {
+        let mut stream = std::net::TcpStream::connect(authority).unwrap();
+        stream.write_all(request.as_bytes()).unwrap();
+        let mut reply = String::new();
+        stream.read_to_string(&mut reply).unwrap();
+        reply
+    };
+    let reply = raw(format!(
+        "POST /api/frame/1.png HTTP/1.1\r\nHost: {authority}\r\nContent-Length: 0\r\nConnection: close\r\n\r\n"
+    ));
     assert!(reply.starts_with("HTTP/1.1 405"), "{reply}");
+    // DNS rebinding: a request for another host name is refused before any route, the scene
+    // included; loopback names on any port (an SSH tunnel's) are served.
+    for (host, status) in [
+        ("evil.example", "421"),
+        ("evil.example:8765", "421"),
+        ("localhost:1", "200"),
+        ("[::1]", "200"),
+    ] {
+        let reply = raw(format!(
+            "GET /api/scene HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\n\r\n"
+        ));
+        assert!(
+            reply.starts_with(&format!("HTTP/1.1 {status}")),
+            "Host: {host}: {reply}"
+        );
+    }
+    let reply = raw("GET /api/scene HTTP/1.0\r\nConnection: close\r\n\r\n".into());
+    assert!(
+        reply.starts_with("HTTP/1.1 421") || reply.starts_with("HTTP/1.0 421"),
+        "no Host: {reply}"
+    );
     server.stop();
 }
 

@@ -55,7 +55,22 @@ pub(super) fn serve(server: &tiny_http::Server, shared: &Shared) {
             Err(_) => continue, // a failed accept: keep serving
         };
         let started = Instant::now();
-        let reply = if *request.method() == tiny_http::Method::Get {
+        let host = request
+            .headers()
+            .iter()
+            .find(|h| h.field.equiv("Host"))
+            .map(|h| h.value.as_str().to_owned());
+        let reply = if !host.as_deref().is_some_and(is_loopback_host) {
+            // DNS rebinding: a page of evil.example resolving to 127.0.0.1 would read frames and
+            // the scene. Only loopback names are served (any port, so SSH tunnels keep working).
+            Reply::error(
+                421,
+                format!(
+                    "the preview answers only requests for 127.0.0.1, localhost or [::1] (Host: {})",
+                    host.as_deref().unwrap_or("missing")
+                ),
+            )
+        } else if *request.method() == tiny_http::Method::Get {
             route(shared, request.url())
         } else {
             Reply::error(405, "the preview only answers GET requests")
@@ -74,6 +89,39 @@ pub(super) fn serve(server: &tiny_http::Server, shared: &Shared) {
         // The client may have gone (a scrubbing page drops requests it no longer needs).
         let _ = request.respond(response);
     }
+}
+
+/// Whether a `Host` header names this machine's loopback: `127.0.0.1`, `localhost` or `[::1]`,
+/// with or without a port.
+fn is_loopback_host(host: &str) -> bool {
+    let host = host.trim();
+    let name = if let Some(rest) = host.strip_prefix('[') {
+        match rest.split_once(']') {
+            Some((inside, port)) if port.is_empty() || port.starts_with(':') => {
+                return inside == "::1" && port_ok(port);
+            }
+            _ => return false,
+        }
+    } else {
+        match host.split_once(':') {
+            Some((name, port)) => {
+                if !port_ok(&format!(":{port}")) {
+                    return false;
+                }
+                name
+            }
+            None => host,
+        }
+    };
+    name == "127.0.0.1" || name.eq_ignore_ascii_case("localhost")
+}
+
+/// Empty, or `:` and a port number.
+fn port_ok(port: &str) -> bool {
+    port.is_empty()
+        || port
+            .strip_prefix(':')
+            .is_some_and(|p| !p.is_empty() && p.parse::<u16>().is_ok())
 }
 
 fn header(name: &str, value: &str) -> tiny_http::Header {
@@ -447,6 +495,34 @@ fn percent_decode(text: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn only_loopback_hosts_are_served() {
+        for host in [
+            "127.0.0.1",
+            "127.0.0.1:8765",
+            "localhost",
+            "LOCALHOST:80",
+            "[::1]",
+            "[::1]:8765",
+        ] {
+            assert!(is_loopback_host(host), "{host}");
+        }
+        for host in [
+            "evil.example",
+            "evil.example:8765",
+            "127.0.0.1.evil.example",
+            "localhost.evil.example",
+            "127.0.0.2",
+            "[::2]:80",
+            "[::1]x",
+            "localhost:",
+            "localhost:99999",
+            "",
+        ] {
+            assert!(!is_loopback_host(host), "{host}");
+        }
+    }
 
     #[test]
     fn queries_are_percent_decoded() {
