@@ -128,7 +128,8 @@ fn locate_matches_the_brute_force_search_of_the_frame() {
     let job = RenderJob::prepare(&scene).unwrap();
     let mut stage_secs = Default::default();
     let water = job.frame_water(frame, &mut stage_secs).unwrap();
-    let surface = water.surface();
+    let heights = water.surface();
+    let surface = water.exact_surface(&heights);
     let setup = job.refraction_setup(water.camera.eye);
     let field = RefractionField::build(&water.membrane, &surface, setup, (-1.0, 0.2));
     let mut scratch = Vec::new();

@@ -184,6 +184,20 @@ impl FrameWater<'_> {
             ripples: self.ripples.as_ref().map(|state| state.field()),
         }
     }
+
+    /// [`FrameWater::surface`] (pass its result) over the membrane's extent, with the bounds every
+    /// exact-surface query steps by ([`crate::refraction::surface`]).
+    pub fn exact_surface<'a>(
+        &'a self,
+        heights: &'a SumHeightField<'a>,
+    ) -> crate::refraction::surface::ExactSurface<'a> {
+        crate::refraction::surface::of_water(
+            &self.waves_now,
+            heights.ripples,
+            heights,
+            self.membrane.grid,
+        )
+    }
 }
 
 /// How under-water geometry is placed: which refraction cells the virtual vertices come from.
@@ -605,7 +619,8 @@ impl RenderJob {
             &water.objects,
             &water.membrane,
         );
-        let surface = water.surface();
+        let heights = water.surface();
+        let surface = water.exact_surface(&heights);
         let clock = Instant::now();
         let field = RefractionField::build(
             membrane,

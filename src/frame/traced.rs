@@ -109,7 +109,12 @@ impl RenderJob {
             objects: self.objects.iter().chain(&inputs.posed).collect(),
             materials: &refracted.draw.materials,
             textures,
-            surface: reference::exact_surface(&inputs.waves, ripples, &field, inputs.membrane.grid),
+            surface: crate::refraction::surface::of_water(
+                &inputs.waves,
+                ripples,
+                &field,
+                inputs.membrane.grid,
+            ),
             membrane: &inputs.membrane,
             view: refracted.view,
             water_model,

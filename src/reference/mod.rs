@@ -45,8 +45,9 @@ use crate::gpu::shading;
 use crate::mesh::Object;
 use crate::water::Membrane;
 
+use crate::refraction::surface::{ExactSurface, RootSteps, SurfaceHit};
 use bvh::{Bvh, Hit, Ray};
-use surface::{ExactSurface, MembraneSurface, RootSteps, SurfaceHit};
+use surface::MembraneSurface;
 use texture::TextureSet;
 
 /// Which water surface the sight rays meet.
@@ -416,33 +417,6 @@ pub fn trace_frame(scene: &TraceScene, width: u32, height: u32) -> TracedFrame {
     }
 }
 
-/// The exact surface of a frame for the tracer: the field with its height range and the slope and
-/// curvature bounds the root finder steps by.
-pub fn exact_surface<'a>(
-    waves: &'a crate::water::WaterSurface,
-    ripples: Option<crate::sim::RippleField<'a>>,
-    field: &'a dyn crate::water::HeightField,
-    extent: crate::water::MembraneGrid,
-) -> ExactSurface<'a> {
-    let (mut low, mut high) = waves.height_bounds_m();
-    let (mut slope, mut curvature) = waves.slope_and_curvature_bounds();
-    if let Some(ripples) = ripples {
-        let reach = ripples.max_abs_height_m();
-        low -= reach;
-        high += reach;
-        let (s, c) = ripples.slope_and_curvature_bounds();
-        slope += s;
-        curvature += c;
-    }
-    ExactSurface {
-        field,
-        extent,
-        height_range_m: (low, high),
-        slope_bound: slope,
-        curvature_bound: curvature,
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -576,7 +550,7 @@ mod tests {
                 materials: &self.materials,
                 textures: &self.textures,
                 surface: ExactSurface {
-                    field: &self.field,
+                    height_field: &self.field,
                     extent: self.membrane.grid,
                     height_range_m: range,
                     slope_bound: slope,

@@ -24,7 +24,8 @@
 
 use glam::{DMat2, DVec2, DVec3};
 
-use super::search::{Image, RefractionField, CREST_SAMPLE_STEP_PER_SPACING};
+use super::search::{Image, RefractionField};
+use super::surface::{ExactSurface, PathCheck};
 use crate::water::HeightField;
 
 /// One exact-sight-point problem: an eye above a height-field surface and a point under it.
@@ -57,10 +58,6 @@ pub const STEP_TOLERANCE: f64 = 1e-14;
 const ARMIJO: f64 = 1e-4;
 /// Backtracking halves the step at most this many times per iteration.
 const MAX_HALVINGS: u32 = 40;
-/// [`path_is_clear`] samples each segment of the path at least this finely: this many samples
-/// over the longer segment's horizontal length.
-pub const DEFAULT_PATH_SAMPLES: f64 = 128.0;
-
 /// `grad L` and `Hess L` at one (x, z), with the distances involved.
 struct Local {
     gradient: DVec2,
@@ -188,103 +185,26 @@ pub fn solve_sight_point(problem: &FermatProblem, start_xz: DVec2) -> Option<Exa
     None
 }
 
-/// Whether the path E-S-V is unobstructed: E-S stays above the surface, S-V below it (§6).
-/// Each segment is sampled every `1 / DEFAULT_PATH_SAMPLES` of the longer one's horizontal length;
-/// see [`path_is_clear_sampled`] to sample at a known feature size instead.
-pub fn path_is_clear(problem: &FermatProblem, sight_point: DVec3) -> bool {
-    let horizontal = |p: DVec3| DVec2::new(p.x - sight_point.x, p.z - sight_point.z).length();
-    let longest_m = horizontal(problem.eye).max(horizontal(problem.point));
-    path_is_clear_sampled(problem, sight_point, longest_m / DEFAULT_PATH_SAMPLES)
-}
-
-/// [`path_is_clear`] with samples at most `max_step_m` apart horizontally (features of the surface
-/// narrower than that may be missed). At S itself the sight ray must arrive from the air side and
-/// the refracted ray leave into the water: `(S - E) . N < 0` and `(V - S) . N < 0` with N the
-/// upward normal; away from S each sample must be on its side, within a round-off tolerance.
-pub fn path_is_clear_sampled(problem: &FermatProblem, sight_point: DVec3, max_step_m: f64) -> bool {
-    path_is_clear_in_band(
-        problem,
-        sight_point,
-        max_step_m,
-        (f64::NEG_INFINITY, f64::INFINITY),
-    )
-}
-
-/// [`path_is_clear_sampled`] for a surface known to lie within `surface_y_range_m` (min, max):
-/// only the parts of the segments inside that band can meet it, so only those are sampled (the
-/// eye's segment rises and the point's falls away from S). What makes the exact method cheap
-/// where the eye is far from the water.
-pub fn path_is_clear_in_band(
-    problem: &FermatProblem,
-    sight_point: DVec3,
-    max_step_m: f64,
-    surface_y_range_m: (f64, f64),
-) -> bool {
+/// Whether `sight_point` (on the surface) is an image of the problem's point: the sight ray
+/// arrives from the air side and the refracted ray leaves into the water, `(S - E) . N < 0` and
+/// `(V - S) . N < 0` with N the upward normal, and the path E-S-V is unobstructed: E-S stays above
+/// the surface and S-V below it, within round-off (§6), by [`ExactSurface::path_is_clear`] and
+/// its guarantee (no crest stepped over). `surface` is the problem's surface with its bounds.
+pub fn path_is_clear(surface: &ExactSurface, problem: &FermatProblem, sight_point: DVec3) -> bool {
     let s = sight_point;
     let (hx, hz) = problem.surface.gradient(s.x, s.z);
     let up = DVec3::new(-hx, 1.0, -hz);
     if (s - problem.eye).dot(up) >= 0.0 || (problem.point - s).dot(up) >= 0.0 {
         return false;
     }
-    let (low_m, high_m) = surface_y_range_m;
-    // Fraction of each segment (from S) inside the band.
-    let eye_end = band_end(s, problem.eye, high_m);
-    let point_end = band_end(s, problem.point, low_m);
-    segment_on_side(problem.surface, s, problem.eye, eye_end, true, max_step_m)
-        && segment_on_side(
-            problem.surface,
-            s,
-            problem.point,
-            point_end,
-            false,
-            max_step_m,
-        )
-}
-
-/// How far along `from` -> `to` (as a fraction) the segment stays on the near side of height
-/// `limit_m` (1 when it never crosses it).
-fn band_end(from: DVec3, to: DVec3, limit_m: f64) -> f64 {
-    let rise = to.y - from.y;
-    if !limit_m.is_finite() || rise == 0.0 {
-        return 1.0;
-    }
-    let end = (limit_m - from.y) / rise;
-    if end > 0.0 {
-        end.min(1.0)
-    } else {
-        // S already beyond the limit (a band that does not contain the surface here): check all.
-        1.0
-    }
-}
-
-/// Samples `from + (to - from) s` for s in (0, end], at most `max_step_m` apart horizontally,
-/// and checks each is above (or below) the surface.
-fn segment_on_side(
-    surface: &dyn HeightField,
-    from: DVec3,
-    to: DVec3,
-    end: f64,
-    above: bool,
-    max_step_m: f64,
-) -> bool {
-    let along = to - from;
-    let horizontal_m = DVec2::new(along.x, along.z).length() * end;
-    let samples = if max_step_m > 0.0 && max_step_m.is_finite() {
-        (horizontal_m / max_step_m).ceil().clamp(1.0, 1e6) as u32
-    } else {
-        1
+    // Round-off of the heights compared (the path touches the surface at S).
+    let tolerance_m = 1e-9 * (1.0 + (problem.eye - problem.point).length() + s.abs().max_element());
+    let check = PathCheck {
+        guard_m: 0.0,
+        tolerance_m,
+        sight_point_gap_m: 0.0,
     };
-    // Round-off of the heights compared (the segment touches the surface at `from`).
-    let tolerance_m = 1e-9 * (1.0 + along.length() + from.abs().max_element());
-    (1..=samples).all(|k| {
-        let p = from + along * (end * k as f64 / samples as f64);
-        let above_m = p.y - surface.height(p.x, p.z);
-        if above {
-            above_m >= -tolerance_m
-        } else {
-            above_m <= tolerance_m
-        }
-    })
+    surface.path_is_clear(problem.eye, s, problem.point, &check)
 }
 
 /// One image of a point in the exact method: the exact sight point reached from a linear image,
@@ -307,7 +227,7 @@ pub const EXACT_MERGE_DISTANCE_PER_PATH: f64 = 1e-7;
 
 /// The exact images of `point` (cleared into `out`), one solve per linear image in `linear` (in
 /// their order: by facet), started from its sight point: converged solves with a clear path
-/// ([`path_is_clear_in_band`] at the crest check's step) are kept, merged where they coincide;
+/// ([`path_is_clear`]) are kept, merged where they coincide;
 /// blocked ones are dropped (no image there); failed solves keep the linear image, flagged.
 pub fn exact_images(
     field: &RefractionField,
@@ -317,14 +237,12 @@ pub fn exact_images(
 ) {
     out.clear();
     let problem = FermatProblem {
-        surface: field.surface,
+        surface: field.surface.height_field,
         eye: field.setup.eye.as_dvec3(),
         point,
         n_above: field.setup.n_above as f64,
         n_below: field.setup.n_below as f64,
     };
-    let step_m = CREST_SAMPLE_STEP_PER_SPACING * field.spacing_m();
-    let band_m = field.surface_height_bounds_m();
     for image in linear {
         let start = DVec2::new(image.sight_point.x as f64, image.sight_point.z as f64);
         match solve_sight_point(&problem, start) {
@@ -335,7 +253,7 @@ pub fn exact_images(
                 let duplicate = out
                     .iter()
                     .any(|k| !k.newton_fallback && (k.sight_point - s).length() <= tolerance_m);
-                if !duplicate && path_is_clear_in_band(&problem, s, step_m, band_m) {
+                if !duplicate && path_is_clear(field.surface, &problem, s) {
                     out.push(ExactImage {
                         facet: image.facet,
                         sight_point: s,
@@ -358,6 +276,7 @@ pub fn exact_images(
 mod tests {
     use super::*;
     use crate::refraction::flat::flat_sight_point;
+    use crate::refraction::search::test_support::square_grid;
     use crate::water::{FlatHeightField, FnHeightField, Wave, WaveField};
 
     const N_AIR: f64 = 1.0;
@@ -427,7 +346,12 @@ mod tests {
                 "case {case}: {} vs {oracle} ({relative:e})",
                 solved.sight_point
             );
-            assert!(path_is_clear(&problem, solved.sight_point), "case {case}");
+            let extent = square_grid(1e3, 8);
+            let exact = crate::refraction::search::test_support::flat(&surface, level, extent);
+            assert!(
+                path_is_clear(&exact, &problem, solved.sight_point),
+                "case {case}"
+            );
             worst = worst.max(relative);
             iterations_max = iterations_max.max(solved.iterations);
         }
@@ -549,8 +473,12 @@ mod tests {
     /// crest is clear; a "sight point" reached from below the surface is rejected.
     #[test]
     fn blocked_paths_are_detected() {
+        use crate::refraction::search::test_support::{exact, flat, gaussian_ridge_bounds};
         let crest = FnHeightField::new(|x, _| 0.5 * (-((x + 1.0) / 0.2).powi(2)).exp());
-        let flat = FlatHeightField { level_m: 0.0 };
+        let (slope, curvature) = gaussian_ridge_bounds(0.5, 0.2);
+        let crest_exact = exact(&crest, square_grid(10.0, 8), (0.0, 0.5), slope, curvature);
+        let flat_field = FlatHeightField { level_m: 0.0 };
+        let flat_exact = flat(&flat_field, 0.0, square_grid(10.0, 8));
         let eye = DVec3::new(-3.0, 0.3, 0.0);
         let point = DVec3::new(1.0, -1.0, 0.0);
         let s = flat_sight_point(eye, point, 0.0, N_AIR, N_WATER);
@@ -561,21 +489,17 @@ mod tests {
             n_above: N_AIR,
             n_below: N_WATER,
         };
-        assert!(!path_is_clear(&blocked, s));
+        assert!(!path_is_clear(&crest_exact, &blocked, s));
         let clear = FermatProblem {
-            surface: &flat,
+            surface: &flat_field,
             ..blocked
         };
-        assert!(path_is_clear(&clear, s));
-        // Sampling only the surface's height band still sees the crest (it rises into the band
-        // the eye's segment crosses), and the band changes nothing for the clear path.
-        assert!(!path_is_clear_in_band(&blocked, s, 0.01, (0.0, 0.5)));
-        assert!(path_is_clear_in_band(&clear, s, 0.01, (-1e-9, 1e-9)));
+        assert!(path_is_clear(&flat_exact, &clear, s));
         // The eye under the water: the sight ray would reach S from below.
         let from_below = FermatProblem {
             eye: DVec3::new(-3.0, -0.3, 0.0),
             ..clear
         };
-        assert!(!path_is_clear(&from_below, s));
+        assert!(!path_is_clear(&flat_exact, &from_below, s));
     }
 }

@@ -8,9 +8,10 @@ use glam::{DVec2, Vec2, Vec3};
 
 use super::exact::{path_is_clear, ExactImage, FermatProblem};
 use super::flat::{flat_virtual_vertex, virtual_vertex};
-use super::search::test_support::membrane_from;
+use super::search::test_support::{flat, membrane_from, Bounded};
 use super::search::{Image, RefractionField};
 use super::subdivision::{distance_to_segment, SubdivisionSettings};
+use super::surface::ExactSurface;
 use super::virtual_geometry::tests::{assert_water_line_vertex, grid, setup, Crest};
 use super::virtual_geometry::{
     build_virtual_geometry, build_virtual_geometry_with, exact_vertex_images, query_height_range,
@@ -40,6 +41,11 @@ impl HeightField for NoHessian {
     }
     fn hessian(&self, _: f64, _: f64) -> (f64, f64, f64) {
         (f64::NAN, f64::NAN, f64::NAN)
+    }
+}
+impl Bounded for NoHessian {
+    fn exact(&self, extent: crate::water::MembraneGrid) -> ExactSurface<'_> {
+        flat(self, 0.0, extent)
     }
 }
 
@@ -88,15 +94,16 @@ fn sheet(
 
 fn geometry(
     membrane: &Membrane,
-    surface: &dyn HeightField,
+    surface: &impl Bounded,
     camera: Camera,
     image_size: (u32, u32),
     objects: &[Object],
     placement: Placement,
 ) -> VirtualGeometry {
+    let water = surface.exact(membrane.grid);
     let field = RefractionField::build(
         membrane,
-        surface,
+        &water,
         setup(camera.eye),
         query_height_range(objects, membrane),
     );
@@ -118,7 +125,8 @@ fn geometry(
 fn exact_mode_finds_every_image_under_a_crest() {
     let membrane = membrane_from(&CREST, grid((-1.5, -1.0), (1.5, 1.0), (96, 16)));
     let eye = Vec3::new(0.0, 2.5, -1.5);
-    let field = RefractionField::build(&membrane, &CREST, setup(eye), (-2.5, 0.4));
+    let water = CREST.exact(membrane.grid);
+    let field = RefractionField::build(&membrane, &water, setup(eye), (-2.5, 0.4));
     let mut linear: Vec<Image> = Vec::new();
     let point = [-1.2_f32, -1.6, -2.0]
         .into_iter()
@@ -156,7 +164,7 @@ fn exact_mode_finds_every_image_under_a_crest() {
         assert!((s.y - CREST.height(s.x, s.z)).abs() < 1e-15);
         let g = problem.optical_gradient(DVec2::new(s.x, s.z));
         assert!(g.length() < 1e-11, "{image:?}: |grad L| {}", g.length());
-        assert!(path_is_clear(&problem, s), "{image:?}");
+        assert!(path_is_clear(&water, &problem, s), "{image:?}");
     }
     for (i, a) in exact.iter().enumerate() {
         for b in &exact[i + 1..] {
@@ -548,9 +556,10 @@ fn subdivision_keeps_the_water_line_closed() {
         Placement::Exact(SubdivisionSettings::default()),
     );
     assert!(split.counts.triangles.subdivided > 0, "{:?}", split.counts);
+    let water = surface.exact(membrane.grid);
     let field = RefractionField::build(
         &membrane,
-        &surface,
+        &water,
         setup(camera.eye),
         query_height_range(&objects, &membrane),
     );
@@ -628,9 +637,10 @@ fn linear_placement_is_the_cell_method() {
     let membrane = membrane_from(&surface, grid((-1.5, -1.0), (1.5, 1.0), (48, 16)));
     let objects = [sheet(8, (-1.2, 1.2), (-0.8, 0.8), |x, _| -0.8 + 0.1 * x)];
     let camera = flat_camera();
+    let water = surface.exact(membrane.grid);
     let field = RefractionField::build(
         &membrane,
-        &surface,
+        &water,
         setup(camera.eye),
         query_height_range(&objects, &membrane),
     );

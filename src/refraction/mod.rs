@@ -15,4 +15,5 @@ pub mod rays;
 pub mod search;
 pub mod split;
 pub mod subdivision;
+pub mod surface;
 pub mod virtual_geometry;

@@ -12,9 +12,9 @@
 
 use glam::{DVec2, DVec3, Vec2, Vec3};
 
-use super::exact::{path_is_clear_in_band, solve_sight_point, FermatProblem};
+use super::exact::{path_is_clear, solve_sight_point, FermatProblem};
 use super::flat::virtual_vertex;
-use super::search::{RefractionField, CREST_SAMPLE_STEP_PER_SPACING};
+use super::search::RefractionField;
 use super::split::{WaterVolume, SURFACE_TOLERANCE_M};
 use crate::camera::Camera;
 
@@ -223,7 +223,7 @@ impl Subdivider<'_> {
         let field = self.field;
         let point = position.as_dvec3();
         let water = WaterVolume {
-            surface: field.surface,
+            surface: field.surface.height_field,
             extent: field.membrane.grid,
         };
         if water.height_above_surface_m(point)? >= -SURFACE_TOLERANCE_M {
@@ -243,7 +243,7 @@ impl Subdivider<'_> {
     fn problem(&self, point: DVec3) -> FermatProblem<'_> {
         let field = self.field;
         FermatProblem {
-            surface: field.surface,
+            surface: field.surface.height_field,
             eye: field.setup.eye.as_dvec3(),
             point,
             n_above: field.setup.n_above as f64,
@@ -252,13 +252,12 @@ impl Subdivider<'_> {
     }
 
     /// Whether the path from the eye through the sight point above `sight_point`'s (x, z) to
-    /// `position` is clear, at the crest check's step within the surface's height band.
+    /// `position` is clear ([`path_is_clear`]).
     fn path_is_clear(&self, position: Vec3, sight_point: DVec3) -> bool {
         let field = self.field;
         let problem = self.problem(position.as_dvec3());
         let s = problem.surface_point(DVec2::new(sight_point.x, sight_point.z));
-        let step_m = CREST_SAMPLE_STEP_PER_SPACING * field.spacing_m();
-        path_is_clear_in_band(&problem, s, step_m, field.surface_height_bounds_m())
+        path_is_clear(field.surface, &problem, s)
     }
 
     /// Screen distance, in pixels, of `m` from the segment a-b (all virtual positions); None when

@@ -235,7 +235,7 @@ pub fn build_virtual_geometry_with(
     let field = request.field;
     let membrane = field.membrane;
     let water = WaterVolume {
-        surface: field.surface,
+        surface: field.surface.height_field,
         extent: membrane.grid,
     };
     let splits: Vec<SplitMesh> = request
@@ -619,8 +619,11 @@ pub(crate) mod tests {
     use crate::mesh::{Material, Mesh};
     use crate::refraction::flags::facets_adjacent;
     use crate::refraction::flat::flat_sight_point;
-    use crate::refraction::search::test_support::membrane_from;
+    use crate::refraction::search::test_support::{
+        exact, gaussian_ridge_bounds, membrane_from, Bounded,
+    };
     use crate::refraction::search::{CellMode, RefractionSetup};
+    use crate::refraction::surface::ExactSurface;
     use crate::water::{FlatHeightField, HeightField, MembraneGrid};
 
     const N_AIR: f32 = 1.0;
@@ -653,6 +656,12 @@ pub(crate) mod tests {
     }
     const CREST_HEIGHT_M: f64 = 0.3;
     const CREST_WIDTH_M: f64 = 0.3;
+    impl Bounded for Crest {
+        fn exact(&self, extent: MembraneGrid) -> ExactSurface<'_> {
+            let (slope, curvature) = gaussian_ridge_bounds(CREST_HEIGHT_M, CREST_WIDTH_M);
+            exact(self, extent, (0.0, CREST_HEIGHT_M), slope, curvature)
+        }
+    }
     impl HeightField for Crest {
         fn height(&self, x: f64, _: f64) -> f64 {
             let u = (x - self.centre_x_m) / CREST_WIDTH_M;
@@ -743,9 +752,10 @@ pub(crate) mod tests {
     fn flat_water_geometry(cells: u32, search: ImageSearch, objects: &[Object]) -> VirtualGeometry {
         let surface = FlatHeightField { level_m: 0.0 };
         let membrane = membrane_from(&surface, grid((-2.0, -2.0), (2.0, 2.0), (cells, cells)));
+        let water = surface.exact(membrane.grid);
         let field = RefractionField::build(
             &membrane,
-            &surface,
+            &water,
             setup(FLAT_EYE),
             query_height_range(objects, &membrane),
         );
@@ -880,6 +890,7 @@ pub(crate) mod tests {
         let eye = Vec3::new(-5.0, 2.0, 0.0);
         let surface = FlatHeightField { level_m: 0.0 };
         let membrane = membrane_from(&surface, grid((-2.0, -2.0), (2.0, 2.0), (16, 16)));
+        let water = surface.exact(membrane.grid);
         let positions = vec![
             Vec3::new(-1.9, -2.0, 0.0), // 0: no image
             Vec3::new(0.5, -0.3, 0.0),  // 1: image
@@ -893,7 +904,7 @@ pub(crate) mod tests {
         let objects = [object(positions.clone(), triangles)];
         let field = RefractionField::build(
             &membrane,
-            &surface,
+            &water,
             setup(eye),
             query_height_range(&objects, &membrane),
         );
@@ -981,8 +992,9 @@ pub(crate) mod tests {
     fn convergence_zone_under_a_steep_crest() {
         let surface = Crest { centre_x_m: 0.0 };
         let membrane = membrane_from(&surface, grid((-1.5, -1.0), (1.5, 1.0), (96, 16)));
+        let water = surface.exact(membrane.grid);
         let eye = Vec3::new(0.0, 2.5, -1.5);
-        let field = RefractionField::build(&membrane, &surface, setup(eye), (-2.5, 0.4));
+        let field = RefractionField::build(&membrane, &water, setup(eye), (-2.5, 0.4));
         let mut images = Vec::new();
         let point = [-1.2_f32, -1.6, -2.0]
             .into_iter()
@@ -1087,10 +1099,12 @@ pub(crate) mod tests {
             membrane_from(&before_surface, extent),
             membrane_from(&after_surface, extent),
         );
+        let (before_water, after_water) =
+            (before_surface.exact(extent), after_surface.exact(extent));
         let before_field =
-            RefractionField::build(&before_membrane, &before_surface, setup(eye), (-2.5, 0.4));
+            RefractionField::build(&before_membrane, &before_water, setup(eye), (-2.5, 0.4));
         let after_field =
-            RefractionField::build(&after_membrane, &after_surface, setup(eye), (-2.5, 0.4));
+            RefractionField::build(&after_membrane, &after_water, setup(eye), (-2.5, 0.4));
         let camera = Camera {
             eye,
             target: point,
@@ -1163,10 +1177,11 @@ pub(crate) mod tests {
     fn crossing_into_a_neighbouring_cell_does_not_pop() {
         let surface = FlatHeightField { level_m: 0.0 };
         let membrane = membrane_from(&surface, grid((-2.0, -2.0), (2.0, 2.0), (16, 16)));
+        let water = surface.exact(membrane.grid);
         let point = Vec3::new(0.3, -1.0, 0.5);
         let objects = [probe_object(point)];
         let frame = |eye: Vec3, previous: Option<&TrackingState>| {
-            let field = RefractionField::build(&membrane, &surface, setup(eye), (-1.5, 0.1));
+            let field = RefractionField::build(&membrane, &water, setup(eye), (-1.5, 0.1));
             build_virtual_geometry(
                 &VirtualGeometryRequest {
                     field: &field,
@@ -1246,9 +1261,10 @@ pub(crate) mod tests {
         let frame = |centre_x_m: f64, search: ImageSearch, previous: Option<&TrackingState>| {
             let surface = Crest { centre_x_m };
             let membrane = membrane_from(&surface, extent);
+            let water = surface.exact(membrane.grid);
             let field = RefractionField::build(
                 &membrane,
-                &surface,
+                &water,
                 setup(eye),
                 query_height_range(&objects, &membrane),
             );

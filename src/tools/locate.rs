@@ -58,7 +58,8 @@ pub fn locate(
     check_frame(job, frame)?;
     let mut stage_secs = Default::default();
     let water = job.frame_water(frame, &mut stage_secs)?;
-    let surface = water.surface();
+    let heights = water.surface();
+    let surface = water.exact_surface(&heights);
     let setup = job.refraction_setup(water.camera.eye);
     // The field answers heights between the frame's objects and water; widen it to the points so
     // the accelerated search covers them (outside its range it would test every cell instead).
@@ -67,7 +68,7 @@ pub fn locate(
     });
     let field = RefractionField::build(&water.membrane, &surface, setup, query_y_range);
     let volume = WaterVolume {
-        surface: &surface,
+        surface: &heights,
         extent: water.membrane.grid,
     };
     let eye = setup.eye.as_dvec3();

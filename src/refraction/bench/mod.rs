@@ -23,6 +23,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::search::{CellMode, Image, RefractionField, RefractionSetup};
+use super::surface::{of_water, ExactSurface};
 use crate::water::{
     build_membrane, HeightField, Membrane, MembraneGrid, WaterSurface, Wave, WaveField,
 };
@@ -75,6 +76,11 @@ fn waves(list: &[(f64, f64, f64, f64)]) -> WaterSurface {
 
 fn membrane(surface: &dyn HeightField, grid: MembraneGrid) -> Membrane {
     build_membrane(surface, &grid)
+}
+
+/// The exact surface of the waves over the membrane, as a frame builds it (no ripples).
+fn exact<'a>(surface: &'a WaterSurface, membrane: &Membrane) -> ExactSurface<'a> {
+    of_water(surface, None, surface, membrane.grid)
 }
 
 /// The pool's under-water vertices: floor grid, walls, a sphere and a box (100,000 in all).
@@ -198,11 +204,12 @@ pub(crate) fn pool_scenario_for_tests() -> (WaterSurface, Membrane, Vec<Vec3>, R
 pub fn bench_search_with(repetitions: usize) -> SearchBenchFigures {
     let repetitions = repetitions.max(1);
     let (pool_surface, pool_membrane, pool_points, pool_setup) = pool_scenario();
+    let pool_exact = exact(&pool_surface, &pool_membrane);
     let (mut frame, mut build) = (Vec::new(), Vec::new());
     let mut pool_counts = (0, 0);
     for _ in 0..repetitions {
         let start = Instant::now();
-        let field = RefractionField::build(&pool_membrane, &pool_surface, pool_setup, (-2.0, 0.0));
+        let field = RefractionField::build(&pool_membrane, &pool_exact, pool_setup, (-2.0, 0.0));
         let built = start.elapsed().as_secs_f64();
         pool_counts = query_all(&field, &pool_points, true);
         frame.push(start.elapsed().as_secs_f64());
@@ -221,6 +228,7 @@ pub fn bench_search_with(repetitions: usize) -> SearchBenchFigures {
         cells_z: 30,
     };
     let thesis_membrane = membrane(&thesis_surface, thesis_grid);
+    let thesis_exact = exact(&thesis_surface, &thesis_membrane);
     let mut rng = crate::seeded::SplitMix64::new(0x7E515);
     let thesis_points: Vec<Vec3> = (0..2628)
         .map(|_| {
@@ -242,7 +250,7 @@ pub fn bench_search_with(repetitions: usize) -> SearchBenchFigures {
         let start = Instant::now();
         let field = RefractionField::build(
             &thesis_membrane,
-            &thesis_surface,
+            &thesis_exact,
             thesis_setup,
             (-400.0, -6.0),
         );
@@ -250,13 +258,13 @@ pub fn bench_search_with(repetitions: usize) -> SearchBenchFigures {
         fast.push(start.elapsed().as_secs_f64());
         let start = Instant::now();
         let oracle =
-            RefractionField::build_unaccelerated(&thesis_membrane, &thesis_surface, thesis_setup);
+            RefractionField::build_unaccelerated(&thesis_membrane, &thesis_exact, thesis_setup);
         query_all(&oracle, &thesis_points, false);
         slow.push(start.elapsed().as_secs_f64());
     }
     let field = RefractionField::build(
         &thesis_membrane,
-        &thesis_surface,
+        &thesis_exact,
         thesis_setup,
         (-400.0, -6.0),
     );
@@ -317,7 +325,8 @@ mod tests {
         let figures_setup = pool_scenario();
         let (surface, membrane, points, setup) = &figures_setup;
         let start = Instant::now();
-        let field = RefractionField::build(membrane, surface, *setup, (-2.0, 0.0));
+        let water = exact(surface, membrane);
+        let field = RefractionField::build(membrane, &water, *setup, (-2.0, 0.0));
         println!(
             "build {:?} size {:?}",
             start.elapsed(),
@@ -346,7 +355,8 @@ mod tests {
         let mut fastest_build = f64::INFINITY;
         for _ in 0..10 {
             let start = Instant::now();
-            let field = RefractionField::build(membrane, surface, *setup, (-2.0, 0.0));
+            let water = exact(surface, membrane);
+            let field = RefractionField::build(membrane, &water, *setup, (-2.0, 0.0));
             fastest_build = fastest_build.min(start.elapsed().as_secs_f64());
             drop(field);
         }

@@ -9,6 +9,7 @@ use glam::{DVec3, Vec2, Vec3};
 
 use crate::refraction::cells::Cell;
 use crate::refraction::search::{lanes_may_contain, RefractionField, RefractionSetup};
+use crate::refraction::surface::{of_water, ExactSurface, PathCheck};
 use crate::water::Membrane;
 
 /// Calls `visit` with every facet the accelerated search tests for `p` (its footprint test passed).
@@ -22,7 +23,8 @@ fn for_each_candidate(field: &RefractionField, p: Vec3, visit: impl FnMut(u32)) 
 
 /// The benchmark's pool scenario (`refraction::bench`).
 struct Pool {
-    surface: crate::water::WaterSurface,
+    /// The waves' exact surface (leaked: a tuning aid runs once).
+    surface: ExactSurface<'static>,
     membrane: Membrane,
     points: Vec<Vec3>,
     setup: RefractionSetup,
@@ -30,7 +32,9 @@ struct Pool {
 
 impl Pool {
     fn new() -> Self {
-        let (surface, membrane, points, setup) = super::pool_scenario_for_tests();
+        let (waves, membrane, points, setup) = super::pool_scenario_for_tests();
+        let waves: &'static crate::water::WaterSurface = Box::leak(Box::new(waves));
+        let surface = of_water(waves, None, waves, membrane.grid);
         Self {
             surface,
             membrane,
@@ -96,21 +100,28 @@ fn crest_only() {
         }
     }
     let eye = field.setup.eye.as_dvec3();
+    let check: PathCheck = field.crest.check;
     let (mut a, mut b) = (0, 0);
     for (sp, p) in &pairs {
-        if field.crest.segment_clear_by_slope(*sp, eye - *sp, 1.0, 1.0) {
+        if pool
+            .surface
+            .segment_clear_by_slope(*sp, eye - *sp, 1.0, &check)
+        {
             a += 1;
         }
-        if field.crest.segment_clear_by_slope(*sp, *p - *sp, 1.0, -1.0) {
+        if pool
+            .surface
+            .segment_clear_by_slope(*sp, *p - *sp, -1.0, &check)
+        {
             b += 1;
         }
     }
     println!(
         "CREST pairs {} eye proven {a} point proven {b} slope {} gap {} tol {}",
         pairs.len(),
-        field.crest.heights.slope_bound,
-        field.crest.heights.facet_gap_bound,
-        field.crest.tolerance_m
+        pool.surface.slope_bound,
+        check.sight_point_gap_m,
+        check.tolerance_m
     );
     let mut best = f64::INFINITY;
     let mut n = 0;

@@ -7,9 +7,10 @@ use rayon::prelude::*;
 
 use super::super::cells::{equal_t_containments, thesis_containment, Cell};
 use super::super::rays::{refraction_rays, RefractionRay};
+use super::super::surface::ExactSurface;
 use super::blocks::SearchStructure;
 use super::crest::CrestCheck;
-use crate::water::{HeightField, Membrane};
+use crate::water::Membrane;
 
 /// Which containment test defines a cell (ALGORITHM §5.3).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -55,7 +56,8 @@ pub const MERGE_DISTANCE_PER_FACET_SIZE: f32 = 1e-3;
 /// The refraction cells of one frame and the structure that searches them.
 pub struct RefractionField<'a> {
     pub membrane: &'a Membrane,
-    pub surface: &'a dyn HeightField,
+    /// The exact surface: the crest check's, and what the exact method solves on.
+    pub surface: &'a ExactSurface<'a>,
     pub setup: RefractionSetup,
     /// One ray per membrane vertex.
     pub rays: Vec<RefractionRay>,
@@ -72,7 +74,7 @@ impl<'a> RefractionField<'a> {
     /// (Here they are not missed either: `images` falls back to testing every cell for them.)
     pub fn build(
         membrane: &'a Membrane,
-        surface: &'a dyn HeightField,
+        surface: &'a ExactSurface<'a>,
         setup: RefractionSetup,
         query_y_range: (f32, f32),
     ) -> Self {
@@ -83,7 +85,7 @@ impl<'a> RefractionField<'a> {
     /// tests every cell too). For benchmarks comparing the two.
     pub fn build_unaccelerated(
         membrane: &'a Membrane,
-        surface: &'a dyn HeightField,
+        surface: &'a ExactSurface<'a>,
         setup: RefractionSetup,
     ) -> Self {
         Self::build_with(membrane, surface, setup, None)
@@ -91,7 +93,7 @@ impl<'a> RefractionField<'a> {
 
     fn build_with(
         membrane: &'a Membrane,
-        surface: &'a dyn HeightField,
+        surface: &'a ExactSurface<'a>,
         setup: RefractionSetup,
         query_y_range: Option<(f32, f32)>,
     ) -> Self {
@@ -169,12 +171,6 @@ impl<'a> RefractionField<'a> {
     /// feature the membrane resolves.
     pub fn spacing_m(&self) -> f64 {
         self.crest.spacing_m
-    }
-
-    /// Heights (min, max) the exact surface stays within: the membrane vertices' range widened
-    /// by the crest check's faceting tolerance (the same bound the crest check relies on).
-    pub fn surface_height_bounds_m(&self) -> (f64, f64) {
-        self.crest.surface_height_bounds_m()
     }
 
     /// The cell of one facet.

@@ -42,5 +42,5 @@ mod tests;
 
 #[cfg(test)]
 pub(crate) use blocks::lanes_may_contain;
-pub use crest::{CREST_GUARD_PER_SPACING, CREST_SAMPLE_STEP_PER_SPACING};
+pub use crest::CREST_GUARD_PER_SPACING;
 pub use field::{CellMode, Image, RefractionField, RefractionSetup, MERGE_DISTANCE_PER_FACET_SIZE};

@@ -56,8 +56,9 @@ fn assert_same(field: &RefractionField, point: Vec3, context: &str) -> Vec<Image
 fn flat_water_single_image_with_the_exact_sight_point_direction() {
     let surface = Waves::default();
     let membrane = membrane_from(&surface, square_grid(2.0, 16));
+    let water = surface.exact(membrane.grid);
     let eye = Vec3::new(-3.0, 2.0, 0.5);
-    let field = RefractionField::build(&membrane, &surface, setup(eye), (-2.0, 0.0));
+    let field = RefractionField::build(&membrane, &water, setup(eye), (-2.0, 0.0));
     let point = Vec3::new(0.3, -1.0, 0.2);
     let images = assert_same(&field, point, "flat");
     assert_eq!(images.len(), 1, "{images:?}");
@@ -84,6 +85,7 @@ fn accelerated_equals_brute_force_on_random_membranes_eyes_and_points() {
         let steepness = if case % 3 == 0 { 0.5 } else { 0.15 };
         let surface = random_waves(&mut rng, 1 + case % 4, steepness);
         let membrane = membrane_from(&surface, square_grid(2.0, 12 + (case as u32 % 3) * 4));
+        let water = surface.exact(membrane.grid);
         // Eyes from overhead to grazing (elevation down to ~3 degrees).
         let elevation = rng.range(0.05, 1.5);
         let azimuth = rng.range(0.0, std::f64::consts::TAU);
@@ -93,7 +95,7 @@ fn accelerated_equals_brute_force_on_random_membranes_eyes_and_points() {
             (distance * elevation.sin()).max(0.3) as f32,
             (distance * elevation.cos() * azimuth.sin()) as f32,
         );
-        let field = RefractionField::build(&membrane, &surface, setup(eye), (-2.5, 0.2));
+        let field = RefractionField::build(&membrane, &water, setup(eye), (-2.5, 0.2));
         for _ in 0..300 {
             let p = random_point(&mut rng, 3.0, (-2.5, -0.05));
             let images = assert_same(&field, p, &format!("case {case}"));
@@ -119,8 +121,9 @@ fn points_on_rays_shared_faces_and_corners_give_one_merged_image() {
         level_m: 0.0,
     };
     let membrane = membrane_from(&surface, square_grid(2.0, 16));
+    let water = surface.exact(membrane.grid);
     let eye = Vec3::new(-2.5, 2.5, -1.5);
-    let field = RefractionField::build(&membrane, &surface, setup(eye), (-2.0, 0.1));
+    let field = RefractionField::build(&membrane, &water, setup(eye), (-2.0, 0.1));
     let mut checked = 0;
     for (facet, tri) in membrane.triangles.iter().enumerate().step_by(7) {
         let cell = field.cell(facet as u32);
@@ -166,8 +169,9 @@ fn convergence_zones_under_a_steep_crest_give_several_images() {
         level_m: 0.0,
     };
     let membrane = membrane_from(&surface, square_grid(2.0, 64));
+    let water = surface.exact(membrane.grid);
     let eye = Vec3::new(-1.0, 3.0, 0.1);
-    let field = RefractionField::build(&membrane, &surface, setup(eye), (-3.0, 0.2));
+    let field = RefractionField::build(&membrane, &water, setup(eye), (-3.0, 0.2));
     let mut rng = Rng::new(77);
     let mut several = 0;
     for _ in 0..4000 {
@@ -205,8 +209,10 @@ fn crest_blocked_paths_are_rejected() {
     // 128 cells resolve the ridge well enough that the crest tolerance (twice the largest
     // faceting gap, ~1 cm here) is below the 2 cm by which the oracle below calls a path blocked.
     let membrane = membrane_from(&Ridge, square_grid(2.0, 128));
+    let (slope, curvature) = gaussian_ridge_bounds(0.4, 0.02f64.sqrt());
+    let water = exact(&Ridge, membrane.grid, (0.0, 0.4), slope, curvature);
     let eye = Vec3::new(-3.0, 0.5, 0.0);
-    let field = RefractionField::build(&membrane, &Ridge, setup(eye), (-2.0, 0.5));
+    let field = RefractionField::build(&membrane, &water, setup(eye), (-2.0, 0.5));
     // Directly: a sight point behind the ridge, seen from the low eye, is blocked.
     let behind = DVec3::new(0.8, 0.0, 0.0);
     assert!(field.crest_blocks(behind, DVec3::new(1.0, -0.5, 0.0)));
@@ -265,6 +271,7 @@ fn slope_proof_never_changes_the_crest_answer() {
         let steepness = [0.1, 0.4, 0.9][case % 3];
         let surface = random_waves(&mut rng, 1 + case % 4, steepness);
         let membrane = membrane_from(&surface, square_grid(2.0, 16 + 8 * (case as u32 % 3)));
+        let water = surface.exact(membrane.grid);
         let elevation = rng.range(0.03, 1.5);
         let azimuth = rng.range(0.0, std::f64::consts::TAU);
         let eye = DVec3::new(
@@ -272,7 +279,7 @@ fn slope_proof_never_changes_the_crest_answer() {
             (3.0 * elevation.sin()).max(0.2),
             3.0 * elevation.cos() * azimuth.sin(),
         );
-        let field = RefractionField::build(&membrane, &surface, setup(eye.as_vec3()), (-2.0, 0.2));
+        let field = RefractionField::build(&membrane, &water, setup(eye.as_vec3()), (-2.0, 0.2));
         for _ in 0..400 {
             // A sight point on a random facet, a point anywhere below.
             let facet = (rng.unit() * membrane.triangles.len() as f64) as usize;
@@ -293,9 +300,21 @@ fn slope_proof_never_changes_the_crest_answer() {
                 rng.range(-2.0, -0.01),
                 rng.range(-2.5, 2.5),
             );
-            let walked = field
-                .crest
-                .blocks_with(field.surface, eye, sight, point, false);
+            // The walk alone, without the slope proof.
+            let check = field.crest.check;
+            let walk_clear = |to: DVec3, side: f64| {
+                let d = to - sight;
+                let horizontal = d.x.hypot(d.z);
+                horizontal <= check.guard_m
+                    || water.segment_on_side(
+                        sight,
+                        d,
+                        check.guard_m / horizontal,
+                        side,
+                        check.tolerance_m,
+                    )
+            };
+            let walked = !(walk_clear(eye, 1.0) && walk_clear(point, -1.0));
             assert_eq!(
                 field.crest_blocks(sight, point),
                 walked,
@@ -303,14 +322,8 @@ fn slope_proof_never_changes_the_crest_answer() {
             );
             paths += 1;
             blocked += walked as usize;
-            proven += field
-                .crest
-                .segment_clear_by_slope(sight, point - sight, 1.0, -1.0)
-                as usize
-                + field
-                    .crest
-                    .segment_clear_by_slope(sight, eye - sight, 1.0, 1.0)
-                    as usize;
+            proven += water.segment_clear_by_slope(sight, point - sight, -1.0, &check) as usize
+                + water.segment_clear_by_slope(sight, eye - sight, 1.0, &check) as usize;
         }
     }
     assert!(
@@ -323,11 +336,12 @@ fn slope_proof_never_changes_the_crest_answer() {
 fn thesis_mode_matches_its_brute_force_and_equal_t_on_flat_water() {
     let surface = Waves::default();
     let membrane = membrane_from(&surface, square_grid(2.0, 10));
+    let water = surface.exact(membrane.grid);
     let eye = Vec3::new(0.5, 3.0, 0.2);
     let mut s = setup(eye);
     s.cell_mode = CellMode::Thesis;
-    let thesis = RefractionField::build(&membrane, &surface, s, (-2.0, 0.0));
-    let equal_t = RefractionField::build(&membrane, &surface, setup(eye), (-2.0, 0.0));
+    let thesis = RefractionField::build(&membrane, &water, s, (-2.0, 0.0));
+    let equal_t = RefractionField::build(&membrane, &water, setup(eye), (-2.0, 0.0));
     let point = Vec3::new(0.33, -1.0, 0.21);
     let a = assert_same(&thesis, point, "thesis");
     let b = assert_same(&equal_t, point, "equal-t");
@@ -345,12 +359,13 @@ fn facets_without_a_footprint_bound_are_tested_for_every_point() {
     let mut rng = Rng::new(0x5EED_0002);
     let surface = random_waves(&mut rng, 3, 0.1);
     let membrane = membrane_from(&surface, square_grid(2.0, 32));
+    let water = surface.exact(membrane.grid);
     let eye = Vec3::new(-2.5, 0.15, 0.3);
     let setup = RefractionSetup {
         n_below: 1.0,
         ..setup(eye)
     };
-    let field = RefractionField::build(&membrane, &surface, setup, (-2.0, 0.0));
+    let field = RefractionField::build(&membrane, &water, setup, (-2.0, 0.0));
     let expected: Vec<u32> = (0..membrane.triangles.len() as u32)
         .filter(|&facet| {
             membrane.triangles[facet as usize]
@@ -383,8 +398,9 @@ fn extrapolated_flag_marks_facets_with_back_facing_rays() {
         level_m: 0.0,
     };
     let membrane = membrane_from(&surface, square_grid(2.0, 40));
+    let water = surface.exact(membrane.grid);
     let eye = Vec3::new(-4.0, 0.4, 0.0);
-    let field = RefractionField::build(&membrane, &surface, setup(eye), (-2.0, 0.2));
+    let field = RefractionField::build(&membrane, &water, setup(eye), (-2.0, 0.2));
     let back_facing = field
         .rays
         .iter()
