@@ -136,7 +136,8 @@ enum Command {
     /// tone-mapped beauty (mean and 99th percentile), Z and P within tolerances, flag counts exactly.
     ///
     /// Prints a table per frame and exits like OpenImageIO's idiff: 0 every frame passes, 1 some
-    /// frame warns, 2 some frame fails (a frame on one side only fails) or an input cannot be read.
+    /// frame warns, 2 some frame fails (a frame on one side only fails) or an option is bad, 4 an
+    /// input cannot be found or read (a missing or unreadable file, an empty directory).
     /// Frames that warn or fail get a FLIP heat map, <frame>-difference.png (black = equal,
     /// yellow = very different).
     Diff(snell::check::cli::DiffArgs),

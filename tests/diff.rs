@@ -1,6 +1,6 @@
 //! `snell diff` and `snell check` as a CI job meets them, through the built binary: verdicts on
 //! real renders of scenes/tiny.toml (160x90) and on edited copies of them (one pixel changed, the
-//! ball moved, a flag count changed), idiff's exit codes 0/1/2, heat maps only for frames that did
+//! ball moved, a flag count changed), idiff's exit codes 0/1/2/4, heat maps only for frames that did
 //! not pass, JUnit XML that parses, clear errors for unreadable input, and check/bless of goldens.
 
 mod common;
@@ -275,21 +275,35 @@ fn a_changed_flag_count_fails_and_missing_counts_warn() {
 }
 
 #[test]
-fn unreadable_or_missing_input_is_exit_2_naming_the_file() {
+fn unreadable_or_missing_input_is_exit_4_naming_the_file() {
     let renders = renders();
     let temp = tempfile::tempdir().unwrap();
     let not_exr = temp.path().join("notes.exr");
     std::fs::write(&not_exr, "not an image").unwrap();
     let good = frame_file(&renders.original, 1);
-    let text = assert_exit(&diff(&good, &not_exr, &[], temp.path()), 2);
+    let text = assert_exit(&diff(&good, &not_exr, &[], temp.path()), 4);
     assert!(
         text.contains("error:") && text.contains("notes.exr"),
         "{text}"
     );
 
     let missing = temp.path().join("absent.exr");
-    let text = assert_exit(&diff(&missing, &good, &[], temp.path()), 2);
+    let text = assert_exit(&diff(&missing, &good, &[], temp.path()), 4);
     assert!(text.contains("absent.exr"), "{text}");
+
+    // In two directories, a frame whose file is not a frame makes the diff exit 4 too, while a
+    // frame on one side only is a failing frame (2).
+    let (dir_a, dir_b) = (temp.path().join("a"), temp.path().join("b"));
+    for dir in [&dir_a, &dir_b] {
+        std::fs::create_dir_all(dir).unwrap();
+        std::fs::copy(&good, dir.join("shot.0001.exr")).unwrap();
+    }
+    std::fs::write(dir_b.join("shot.0001.exr"), "not an image").unwrap();
+    let text = assert_exit(&diff(&dir_a, &dir_b, &[], temp.path()), 4);
+    assert!(text.contains("shot.0001.exr"), "{text}");
+    std::fs::copy(&good, dir_b.join("shot.0001.exr")).unwrap();
+    std::fs::copy(&good, dir_a.join("shot.0002.exr")).unwrap();
+    assert_exit(&diff(&dir_a, &dir_b, &[], temp.path()), 2);
 
     let text = assert_exit(&diff(&good, temp.path(), &[], temp.path()), 2);
     assert!(text.contains("two EXR files or two directories"), "{text}");

@@ -1,7 +1,7 @@
 //! `snell diff` and `snell check` as the command line sees them: receives parsed arguments, prints
 //! the per-frame table to stdout and notes to stderr, writes heat maps and the JUnit report, and
-//! returns the exit code of OpenImageIO's idiff: 0 pass, 1 warn, 2 fail (and 2 for any error:
-//! unreadable input, a bad option, a render that failed).
+//! returns the exit code of OpenImageIO's idiff: 0 pass, 1 warn, 2 fail, 4 an input that cannot be
+//! found or read (2 for the other errors: a bad option, a render that failed).
 
 use std::path::{Path, PathBuf};
 
@@ -132,7 +132,7 @@ pub fn run_check(args: &CheckArgs) -> u8 {
         Ok(code) => code,
         Err(error) => {
             errln!("error: {error}");
-            Verdict::Fail.exit_code()
+            error.exit_code()
         }
     }
 }
@@ -197,11 +197,10 @@ fn finish(
         Ok(report) => report,
         Err(error) => {
             errln!("error: {error}");
-            return Verdict::Fail.exit_code();
+            return error.exit_code();
         }
     };
     out!("{}", report.table());
-    let verdict = report.verdict();
     let mut summary = report.summary();
     if report.frames.iter().any(|frame| frame.heatmap.is_some()) {
         summary.push_str(&format!("; FLIP heat maps in {}", heatmap_dir.display()));
@@ -213,5 +212,5 @@ fn finish(
             return Verdict::Fail.exit_code();
         }
     }
-    verdict.exit_code()
+    report.exit_code()
 }

@@ -90,6 +90,25 @@ pub enum CheckError {
     Argument(String),
 }
 
+/// idiff's exit code for input it could not find or read (`ErrFile`).
+pub const EXIT_UNREADABLE: u8 = 4;
+
+impl CheckError {
+    /// The exit code this error ends `snell diff` or `snell check` with, as idiff's: 4 when an
+    /// input cannot be found or read (a missing or unreadable file, a directory that cannot be
+    /// listed or holds no frames), 2 for everything else (a bad option, a render that failed, a
+    /// report that cannot be written).
+    pub fn exit_code(&self) -> u8 {
+        match self {
+            CheckError::Missing { .. }
+            | CheckError::ListDir { .. }
+            | CheckError::NoFrames { .. }
+            | CheckError::Output(OutputError::Read { .. }) => EXIT_UNREADABLE,
+            _ => Verdict::Fail.exit_code(),
+        }
+    }
+}
+
 /// A frame's (or a whole diff's) outcome. Ordered: the worst finding wins.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum Verdict {
@@ -254,6 +273,9 @@ pub struct FrameComparison {
     /// The FLIP heat map written for this frame, if any.
     pub heatmap: Option<PathBuf>,
     pub elapsed_secs: f64,
+    /// One of its files exists but cannot be read as a frame (the diff then exits with
+    /// [`EXIT_UNREADABLE`]); a frame on one side only is a failing frame, not this.
+    pub unreadable: bool,
 }
 
 impl FrameComparison {
@@ -274,7 +296,12 @@ impl FrameComparison {
             .join("; ")
     }
 
-    fn failed(name: String, reference: PathBuf, test: PathBuf, message: String) -> Self {
+    fn failed(
+        name: String,
+        (reference, test): (PathBuf, PathBuf),
+        message: String,
+        unreadable: bool,
+    ) -> Self {
         FrameComparison {
             name,
             reference,
@@ -287,6 +314,7 @@ impl FrameComparison {
             }],
             heatmap: None,
             elapsed_secs: 0.0,
+            unreadable,
         }
     }
 }
@@ -298,6 +326,16 @@ pub struct DiffReport {
 }
 
 impl DiffReport {
+    /// idiff's exit code: [`EXIT_UNREADABLE`] when a frame's file could not be read, else the
+    /// verdict's (0 pass, 1 warn, 2 fail).
+    pub fn exit_code(&self) -> u8 {
+        if self.frames.iter().any(|frame| frame.unreadable) {
+            EXIT_UNREADABLE
+        } else {
+            self.verdict().exit_code()
+        }
+    }
+
     pub fn verdict(&self) -> Verdict {
         self.frames
             .iter()
@@ -713,6 +751,7 @@ pub fn compare_pair(
         findings,
         heatmap: None,
         elapsed_secs: 0.0,
+        unreadable: false,
     };
     if let (Some(dir), Some(heat)) = (heatmap_dir, heat) {
         if comparison.verdict() != Verdict::Pass {
@@ -741,11 +780,12 @@ pub fn compare_pairs(
                 if matches!(&error, CheckError::Missing { path } if *path == pair.reference) {
                     message.push_str(&pair.missing_reference_hint);
                 }
+                let unreadable = !matches!(&error, CheckError::Missing { .. });
                 FrameComparison::failed(
                     pair.name.clone(),
-                    pair.reference.clone(),
-                    pair.test.clone(),
+                    (pair.reference.clone(), pair.test.clone()),
                     message,
+                    unreadable,
                 )
             })
         })
