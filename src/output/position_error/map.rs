@@ -449,11 +449,19 @@ impl<'a> PositionMap<'a> {
     /// Every place where the frame sees `target` on `object`: one per image (pieces within
     /// [`IMAGE_SEPARATION_PX`] of a better-fitting one are the same image), best fit first.
     pub fn images_of(&self, target: [f32; 3], object: u32) -> Vec<[f64; 2]> {
+        self.candidates(target, object).0
+    }
+
+    /// The images of `target` ([`Self::images_of`]), and the places on pieces that pass the
+    /// containment tolerance but lie just beyond an edge (a silhouette, a fold), where the frame
+    /// nearly sees it.
+    fn candidates(&self, target: [f32; 3], object: u32) -> (Vec<[f64; 2]>, Vec<[f64; 2]>) {
         let Some(root) = self.root(object) else {
-            return Vec::new();
+            return (Vec::new(), Vec::new());
         };
         let target = to_f64(target);
         let mut found: Vec<(f64, [f64; 2])> = Vec::new();
+        let mut nearly: Vec<[f64; 2]> = Vec::new();
         let mut stack = vec![root];
         while let Some(node) = stack.pop() {
             let node = self.nodes[node];
@@ -467,17 +475,19 @@ impl<'a> PositionMap<'a> {
             }
             for piece in &self.pieces[node.first as usize..(node.first + node.count) as usize] {
                 let corners = piece.corners.map(|c| c as usize);
+                let size = self.piece_size(corners);
+                let (distance, screen) = self.closest_on_piece(piece, target);
+                if distance > CONTAINMENT_TOLERANCE * size {
+                    continue;
+                }
                 // Beyond a triangle's edge is not on it, however close: a point just past a
                 // silhouette is not seen there (it would measure as on the edge).
                 let beyond_an_edge =
                     projection_weights(corners.map(|c| self.position_of(c)), target)
                         .is_some_and(|w| w.iter().any(|&c| c < -EDGE_SLACK));
                 if beyond_an_edge {
-                    continue;
-                }
-                let size = self.piece_size(corners);
-                let (distance, screen) = self.closest_on_piece(piece, target);
-                if distance <= CONTAINMENT_TOLERANCE * size {
+                    nearly.push(screen);
+                } else {
                     // Relative to the piece's size, so fits on pieces of different sizes compare.
                     let fit = if size > 0.0 { distance / size } else { 0.0 };
                     found.push((fit, screen));
@@ -498,7 +508,7 @@ impl<'a> PositionMap<'a> {
                 images.push(screen);
             }
         }
-        images
+        (images, nearly)
     }
 
     /// Where the frame sees the point of `object` nearest `target` (3-D distance), when it sees
@@ -536,22 +546,30 @@ impl<'a> PositionMap<'a> {
         best.map(|(_, screen)| screen)
     }
 
-    /// Where the frame sees `target` on `object`, nearest to screen point `near` among its images,
-    /// or where it sees the nearest point of the object when it does not see `target`.
+    /// Where the frame sees `target` on `object`, nearest to screen point `near` among its images.
+    /// When it does not see `target` (`seen` false): the nearest place, to `near`, just beyond an
+    /// edge where it nearly does (within the containment tolerance: a silhouette, or a sheet's end
+    /// at a fold, where one sample per pixel cannot tell), else where it sees the object's point
+    /// nearest `target`. Images come first: a neighbouring piece's edge is often nearer to `near`
+    /// than the image itself.
     pub fn place_of(&self, target: [f32; 3], object: u32, near: [f64; 2]) -> Option<Place> {
-        let images = self.images_of(target, object);
-        let nearest_image = images.into_iter().min_by(|a, b| {
-            let da = (a[0] - near[0]).hypot(a[1] - near[1]);
-            let db = (b[0] - near[0]).hypot(b[1] - near[1]);
-            da.total_cmp(&db)
-        });
-        match nearest_image {
-            Some(screen) => Some(Place { screen, seen: true }),
-            None => self.nearest_seen(target, object).map(|screen| Place {
+        let (images, nearly) = self.candidates(target, object);
+        let nearest = |places: Vec<[f64; 2]>| {
+            places.into_iter().min_by(|a, b| {
+                let da = (a[0] - near[0]).hypot(a[1] - near[1]);
+                let db = (b[0] - near[0]).hypot(b[1] - near[1]);
+                da.total_cmp(&db)
+            })
+        };
+        if let Some(screen) = nearest(images) {
+            return Some(Place { screen, seen: true });
+        }
+        nearest(nearly)
+            .or_else(|| self.nearest_seen(target, object))
+            .map(|screen| Place {
                 screen,
                 seen: false,
-            }),
-        }
+            })
     }
 }
 
