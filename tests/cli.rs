@@ -247,6 +247,65 @@ fn info_describes_the_scene() {
     }
 }
 
+/// A scene with a character: `snell info` lists it with its model's size and every animation of
+/// its file with its duration, the one played marked. The durations are read here from the glTF
+/// JSON itself (each animation's sampler inputs, from their accessors' min and max), not by snell's
+/// loader.
+#[test]
+fn info_lists_characters_with_their_animations_and_size() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/fox_wading.toml");
+    let output = snell(&["info", scene.to_str().unwrap()], dir.path());
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert!(output.status.success(), "{stdout}");
+
+    let glb = std::fs::read(repo_file("scenes/assets/Fox.glb")).unwrap();
+    let json_length = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
+    assert_eq!(&glb[16..20], b"JSON");
+    let gltf: serde_json::Value = serde_json::from_slice(&glb[20..20 + json_length]).unwrap();
+    let accessors = gltf["accessors"].as_array().unwrap();
+    let animations = gltf["animations"].as_array().unwrap();
+    assert!(animations.len() >= 2);
+    assert!(stdout.contains("characters 1"), "{stdout}");
+    for (index, animation) in animations.iter().enumerate() {
+        let (mut start, mut end) = (f64::INFINITY, f64::NEG_INFINITY);
+        for sampler in animation["samplers"].as_array().unwrap() {
+            let input = &accessors[sampler["input"].as_u64().unwrap() as usize];
+            start = start.min(input["min"][0].as_f64().unwrap());
+            end = end.max(input["max"][0].as_f64().unwrap());
+        }
+        let name = animation["name"].as_str().unwrap();
+        let line = format!("animation {index} {name:?}: {:.2} s", end - start);
+        assert!(stdout.contains(&line), "{line:?} in\n{stdout}");
+    }
+    let played = stdout
+        .lines()
+        .find(|line| line.contains("<- played"))
+        .unwrap_or_else(|| panic!("no animation marked as played:\n{stdout}"));
+    assert!(played.contains("\"Walk\""), "{played}");
+    // The scene says the fox is 0.63 m from paws to ears at its scale.
+    let model = stdout
+        .lines()
+        .find(|line| line.contains("Fox.glb"))
+        .unwrap_or_else(|| panic!("no model line:\n{stdout}"));
+    let sizes: Vec<f64> = model
+        .split(';')
+        .nth(1)
+        .unwrap()
+        .split(" m ")
+        .next()
+        .unwrap()
+        .split(" x ")
+        .map(|v| v.trim().parse().unwrap())
+        .collect();
+    assert_eq!(sizes.len(), 3, "{model}");
+    assert!(
+        (0.5..0.8).contains(&sizes[1]),
+        "height {} in {model}",
+        sizes[1]
+    );
+}
+
 /// A file of the repository, as an absolute path a scene in a temporary folder can name.
 fn repo_file(relative: &str) -> String {
     Path::new(env!("CARGO_MANIFEST_DIR"))

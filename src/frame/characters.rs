@@ -34,6 +34,65 @@ pub struct Character {
 }
 
 impl Character {
+    /// What `snell info` says about the character: its file, the model's size in metres (the bind
+    /// pose's bounding box at the scene's scale), its vertices, and every animation in the file
+    /// with its duration, the one played marked.
+    pub fn describe(&self) -> String {
+        use std::fmt::Write;
+        let pose = self.asset.bind_pose();
+        let scale = Mat4::from_scale(Vec3::splat(self.spec.scale as f32));
+        let (low, high) = self
+            .asset
+            .posed_primitives(&pose, scale)
+            .iter()
+            .flat_map(|primitive| primitive.mesh.positions.iter().copied())
+            .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| {
+                (lo.min(p), hi.max(p))
+            });
+        let size = if low.x.is_finite() {
+            high - low
+        } else {
+            Vec3::ZERO
+        };
+        let mut text = String::new();
+        let _ = writeln!(
+            text,
+            "           - {}: {} ({} vertices; {:.2} x {:.2} x {:.2} m at scale {}, bind pose)",
+            self.spec.name,
+            self.spec.file.display(),
+            self.asset.vertex_count(),
+            size.x,
+            size.y,
+            size.z,
+            self.spec.scale
+        );
+        let animations = self.asset.animations();
+        if animations.is_empty() {
+            text.push_str("             no animations: the rest pose is drawn\n");
+        }
+        for (index, info) in animations.iter().enumerate() {
+            let played = if self.animation == Some(index) {
+                format!(
+                    "  <- played, {} at speed {}",
+                    match self.spec.playback {
+                        Playback::Loop => "looping",
+                        Playback::Clamp => "clamped",
+                    },
+                    self.spec.speed
+                )
+            } else {
+                String::new()
+            };
+            let _ = writeln!(
+                text,
+                "             animation {index} {:?}: {:.2} s{played}",
+                info.name.as_deref().unwrap_or("(unnamed)"),
+                info.end_secs - info.start_secs
+            );
+        }
+        text
+    }
+
     /// Seconds into the animation clip at timeline time `time_secs`.
     pub fn clip_secs(&self, time_secs: f64) -> f32 {
         let Some(index) = self.animation else {

@@ -887,6 +887,13 @@ impl RenderJob {
                 object.mesh.triangle_count()
             );
         }
+        let characters = &self.dynamics.characters;
+        if !characters.is_empty() {
+            let _ = writeln!(text, "characters {}", characters.len());
+            for character in characters {
+                text.push_str(&character.describe());
+            }
+        }
         let _ = writeln!(
             text,
             "water      {}x{} cells over x {:.2}..{:.2} m, z {:.2}..{:.2} m ({} facets), {} waves, n {} / {}",
