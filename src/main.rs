@@ -687,8 +687,8 @@ fn stability(
             progress: true,
         },
     )?;
-    print!("{}", outcome.summary_text(&methods));
-    println!(
+    out!("{}", outcome.summary_text(&methods));
+    outln!(
         "wrote {}, {}, {} and {}",
         outcome.csv.display(),
         outcome.summary.display(),
