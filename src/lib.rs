@@ -24,6 +24,9 @@
 //! [`tools`] checks snell from outside: every image of given points (`snell locate`), position
 //! error between frames (`snell compare`), a frame's geometry and camera for other tools (`snell export`).
 //!
+//! [`oracle`] finds every image of a point by a scan that provably misses none, sharing only the
+//! surface's height function with the renderer: the truth the methods are checked against.
+//!
 //! [`seeded`] is the one seeded random number generator of the tests and benchmarks.
 //!
 //! [`frame`] ties the stages together: one `render_frame` entry point used identically by the CLI
@@ -43,6 +46,7 @@ pub mod frame;
 pub mod gpu;
 pub mod interrupt;
 pub mod mesh;
+pub mod oracle;
 pub mod output;
 pub mod panics;
 pub mod preview;

@@ -11,6 +11,8 @@ pub mod exact;
 mod exact_tests;
 pub mod flags;
 pub mod flat;
+#[cfg(test)]
+mod oracle_tests;
 pub mod rays;
 pub mod search;
 pub mod split;
