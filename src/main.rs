@@ -453,6 +453,7 @@ fn render(
     job.method = method;
     job.subdivision.tolerance_px = subdivision_px;
     job.stamp = stamp;
+    job.write = exr.write_options();
     let range = match frames {
         Some(text) => FrameRange::parse(text, job.timeline())?,
         None => FrameRange::whole(job.timeline()),

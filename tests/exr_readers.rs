@@ -297,3 +297,56 @@ fn the_pip_openexr_module_reads_every_layer_and_decodes_the_cryptomatte() {
         assert!(read == bits, "{name}: the module reads other values");
     }
 }
+
+/// `--half --compression piz`: exrheader sees a half beauty, float32 data layers, PIZ, and the
+/// header's `snell.output` says so; oiiotool reads the frame whole.
+#[test]
+fn half_beauty_and_piz_are_what_the_readers_see() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = repo().join("scenes/tiny.toml");
+    let output = common::snell(
+        &[
+            "render",
+            scene.to_str().unwrap(),
+            "--frames",
+            "1",
+            "--size",
+            "96x54",
+            "--half",
+            "--compression",
+            "piz",
+            "--out",
+            dir.path().to_str().unwrap(),
+        ],
+        repo(),
+    );
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let path = dir.path().join("tiny.0001.exr");
+    let text = run("exrheader", &[path.to_str().unwrap()], DEBIAN_TOOLS);
+    for line in [
+        "    R, 16-bit floating-point",
+        "    A, 16-bit floating-point",
+        "    Z, 32-bit floating-point",
+        "    P.X, 32-bit floating-point",
+        "    IndexOB.X, 32-bit floating-point",
+        "    CryptoObject00.R, 32-bit floating-point",
+        "compression (type compression): piz",
+        "snell.output (type string): \"beauty=half compression=piz\"",
+    ] {
+        assert!(text.contains(line), "no `{line}` in:\n{text}");
+    }
+    let info = run(
+        "oiiotool",
+        &["--info", "-v", path.to_str().unwrap()],
+        DEBIAN_TOOLS,
+    );
+    assert!(
+        info.contains("R (half)") && info.contains("Z (float)"),
+        "{info}"
+    );
+    assert!(info.contains("compression: \"piz\""), "{info}");
+}

@@ -337,6 +337,9 @@ pub struct RenderJob {
     /// The EXR header's `owner` and `capDate`; none by default, so frames are byte-identical
     /// run to run (the CLI sets them from `--owner` and `SOURCE_DATE_EPOCH`).
     pub stamp: HeaderStamp,
+    /// How frames are stored (`--half`, `--compression`); part of the input hash when not the
+    /// default, so `--resume` renders again frames stored otherwise.
+    pub write: crate::output::exr::WriteOptions,
     /// Heights the refraction search must cover for the static objects (characters and ripples
     /// widen it per frame).
     query_y_range: (f32, f32),
@@ -404,6 +407,7 @@ impl RenderJob {
             subdivision: SubdivisionSettings::default(),
             quality_choice: None,
             stamp: HeaderStamp::default(),
+            write: Default::default(),
             query_y_range: (bottom, top),
             traced_textures: std::sync::OnceLock::new(),
             scene_files,
@@ -435,6 +439,12 @@ impl RenderJob {
                 self.subdivision.max_depth
             ),
             _ => self.method_label().to_string(),
+        };
+        // Frames of the default storage keep the hash they had before the choice existed.
+        let method = if self.write == crate::output::exr::WriteOptions::default() {
+            method
+        } else {
+            format!("{method} {}", self.write.label())
         };
         inputs::input_hash(&self.scene_files, width, height, &method)
     }
@@ -807,6 +817,7 @@ impl RenderJob {
             object_names: self.object_names(),
             owner: self.stamp.owner.clone(),
             capture_unix_secs: self.stamp.capture_unix_secs,
+            write: self.write,
             extra: vec![
                 (
                     "convergencePolicy".to_string(),

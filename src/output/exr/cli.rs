@@ -1,6 +1,7 @@
 //! The EXR options of `snell render` (flattened into its arguments), kept here so the channel
 //! map's options live beside the map.
 
+use super::{ExrCompression, WriteOptions};
 use crate::frame::{HeaderStamp, SnellError};
 
 /// What the written EXR frames hold besides the pixels.
@@ -11,6 +12,15 @@ pub struct ExrArgs {
     /// Neither is written by default, so the same render gives the same bytes every time.
     #[arg(long, value_name = "NAME")]
     pub owner: Option<String>,
+    /// Store the beauty (R, G, B, A) as half floats, the VFX default: half the beauty's bytes.
+    /// Z, P, IDs and the other layers stay float32 (half P would step 4 mm at 4 m).
+    #[arg(long)]
+    pub half: bool,
+    /// The frames' compression, lossless all (README "What a render gives you" measures each):
+    /// zip (the default) and zips are deflate over 16 lines and over one; piz wavelets; rle
+    /// run-length; none. The header's `compression` and `snell.output` say which was used.
+    #[arg(long, value_enum, value_name = "KIND", default_value_t = ExrCompression::Zip)]
+    pub compression: ExrCompression,
 }
 
 impl ExrArgs {
@@ -19,12 +29,27 @@ impl ExrArgs {
         stamp_from(self.owner.clone(), std::env::var("SOURCE_DATE_EPOCH").ok())
     }
 
+    /// How the frames are stored.
+    pub fn write_options(&self) -> WriteOptions {
+        WriteOptions {
+            half_beauty: self.half,
+            compression: self.compression,
+        }
+    }
+
     /// The command-line words that give these options again (for the resume command).
     pub fn command_words(&self) -> Vec<String> {
-        match &self.owner {
-            Some(owner) => vec!["--owner".into(), owner.clone()],
-            None => Vec::new(),
+        let mut words = Vec::new();
+        if let Some(owner) = &self.owner {
+            words.extend(["--owner".to_string(), owner.clone()]);
         }
+        if self.half {
+            words.push("--half".into());
+        }
+        if self.compression != ExrCompression::default() {
+            words.extend(["--compression".to_string(), self.compression.name().into()]);
+        }
+        words
     }
 }
 

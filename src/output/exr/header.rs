@@ -22,6 +22,8 @@ pub(super) const VERSION: &str = "snell.version";
 pub(super) const CHANNEL_MAP: &str = "snell.channelMap";
 /// JSON array: the name of `IndexOB` 1, 2, ...
 pub(super) const OBJECT_NAMES: &str = "snell.objectNames";
+/// How the frame is stored: [`super::WriteOptions::label`].
+pub(super) const OUTPUT: &str = "snell.output";
 pub(super) const EXTRA_PREFIX: &str = "snell.extra.";
 
 pub(super) fn text(value: &str) -> Text {
@@ -173,6 +175,7 @@ pub(super) fn attributes(
         (METHOD.into(), string(&meta.method)),
         (VERSION.into(), string(&meta.version)),
         (CHANNEL_MAP.into(), string(CHANNEL_MAP_VERSION)),
+        (OUTPUT.into(), string(&meta.write.label())),
         (
             OBJECT_NAMES.into(),
             string(&serde_json::to_string(&meta.object_names).expect("strings serialise")),

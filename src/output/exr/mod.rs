@@ -57,6 +57,71 @@ pub struct FrameMeta {
     pub capture_unix_secs: Option<i64>,
     /// Further text attributes, written as `snell.extra.<key>`.
     pub extra: Vec<(String, String)>,
+    /// How the frame is stored (`--half`, `--compression`).
+    pub write: WriteOptions,
+}
+
+/// How a frame's pixels are stored: the beauty's sample type and the file's compression. Every
+/// other layer stays float32 (or half for the 0/1 masks) whatever the choice: half-float `P`
+/// would step 4 mm at 4 m, about a pixel at 720p. Recorded in the header (`compression`, and
+/// `snell.output`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct WriteOptions {
+    /// `R, G, B, A` as half floats (the VFX default; about 3 significant digits; brighter values
+    /// than 65504 saturate there).
+    pub half_beauty: bool,
+    pub compression: ExrCompression,
+}
+
+/// The lossless compressions a frame may be written with (one for the whole file). OpenEXR's lossy
+/// DWAA and DWAB, which would suit the beauty only, are not offered: the `exr` crate snell writes
+/// with cannot encode them.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum ExrCompression {
+    /// Deflate over blocks of 16 scan lines: compact on smooth float data.
+    #[default]
+    Zip,
+    /// Deflate per scan line: larger files, reads one line at a time.
+    Zips,
+    /// Wavelet and Huffman: often the smallest for noisy float images.
+    Piz,
+    /// Run-length: fast, good only on flat areas.
+    Rle,
+    /// Uncompressed: the fastest to write, the largest files.
+    None,
+}
+
+impl ExrCompression {
+    pub const ALL: [ExrCompression; 5] = [Self::Zip, Self::Zips, Self::Piz, Self::Rle, Self::None];
+
+    /// The name `--compression` takes and the header's `snell.output` gives.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Zip => "zip",
+            Self::Zips => "zips",
+            Self::Piz => "piz",
+            Self::Rle => "rle",
+            Self::None => "none",
+        }
+    }
+
+    fn codec(self) -> Compression {
+        match self {
+            Self::Zip => Compression::ZIP16,
+            Self::Zips => Compression::ZIP1,
+            Self::Piz => Compression::PIZ,
+            Self::Rle => Compression::RLE,
+            Self::None => Compression::Uncompressed,
+        }
+    }
+}
+
+impl WriteOptions {
+    /// `beauty=float32 compression=zip`: the header's `snell.output`.
+    pub fn label(&self) -> String {
+        let beauty = if self.half_beauty { "half" } else { "float32" };
+        format!("beauty={beauty} compression={}", self.compression.name())
+    }
 }
 
 /// The header of a frame read back by [`read_frame_exr`].
@@ -94,6 +159,7 @@ impl FrameMeta {
             owner: None,
             capture_unix_secs: None,
             extra: read.text_attributes.clone(),
+            write: WriteOptions::default(),
         }
     }
 }
@@ -134,22 +200,35 @@ fn check_frame_shape(frame: &RenderedFrame) -> Result<usize, String> {
     Ok(pixel_count)
 }
 
+/// The largest finite half float: a half beauty saturates there.
+const HALF_MAX: f32 = 65504.0;
+
 /// The channels of a frame, by the channel map.
 fn frame_channels<'a>(
     frame: &'a RenderedFrame,
     crypto_ids: &'a [f32],
     water_id: f32,
+    half_beauty: bool,
 ) -> Vec<ChannelSource<'a>> {
     use channels::*;
     let width = frame.width as usize;
     let row = move |y: usize| y * width..(y + 1) * width;
     let mut list = Vec::new();
     for (c, name) in BEAUTY.into_iter().enumerate() {
-        list.push(ChannelSource::f32(name, move |y, out| {
-            frame.beauty_rgba[row(y)]
-                .iter()
-                .for_each(|p| push_f32(out, p[c]))
-        }));
+        list.push(if half_beauty {
+            // Saturated at the largest half (65504) rather than made infinite.
+            ChannelSource::f16(name, move |y, out| {
+                frame.beauty_rgba[row(y)]
+                    .iter()
+                    .for_each(|p| push_f16(out, p[c].min(HALF_MAX)))
+            })
+        } else {
+            ChannelSource::f32(name, move |y, out| {
+                frame.beauty_rgba[row(y)]
+                    .iter()
+                    .for_each(|p| push_f32(out, p[c]))
+            })
+        });
     }
     list.push(ChannelSource::f32(DEPTH, move |y, out| {
         frame.depth_m[row(y)].iter().for_each(|&d| push_f32(out, d))
@@ -273,13 +352,17 @@ fn encode_frame(frame: &RenderedFrame, meta: &FrameMeta) -> Result<Vec<u8>, Stri
     let spec = encode::FileSpec {
         width,
         height,
-        // ZIP over 16 scan lines: lossless and compact on smooth float data.
-        compression: Compression::ZIP16,
+        compression: meta.write.compression.codec(),
         attributes: header::attributes(meta, width, height, &crypto_names)?,
     };
     encode::encode(
         &spec,
-        frame_channels(frame, &crypto_ids, cryptomatte::id_float(&water_name)),
+        frame_channels(
+            frame,
+            &crypto_ids,
+            cryptomatte::id_float(&water_name),
+            meta.write.half_beauty,
+        ),
     )
 }
 

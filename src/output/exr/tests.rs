@@ -30,6 +30,7 @@ fn test_meta() -> FrameMeta {
             ("scene_file".into(), "scenes/pool.toml".into()),
             ("note".into(), "ünïcode ok".into()),
         ],
+        write: WriteOptions::default(),
     }
 }
 
@@ -463,4 +464,56 @@ fn overwriting_an_existing_frame_replaces_it() {
     let second = test_frame(5, 4);
     write_frame_exr(&path, &second, &test_meta()).unwrap();
     assert_bit_exact(&as_read_back(&second), &read_frame_exr(&path).unwrap().0);
+}
+
+/// Every compression round-trips every layer bit for bit; `--half` stores the beauty, and only
+/// it, as half floats (rounded to nearest, saturating at 65504); the header says which.
+#[test]
+fn every_compression_is_lossless_and_half_touches_only_the_beauty() {
+    let temp = tempfile::tempdir().unwrap();
+    // 40 x 35 lines: several chunks of every codec (PIZ takes 32 lines, ZIP 16).
+    let frame = test_frame(40, 35);
+    let expected = as_read_back(&frame);
+    for compression in ExrCompression::ALL {
+        for half_beauty in [false, true] {
+            let write = WriteOptions {
+                half_beauty,
+                compression,
+            };
+            let path = temp
+                .path()
+                .join(format!("{}-{half_beauty}.exr", compression.name()));
+            let meta = FrameMeta {
+                write,
+                ..test_meta()
+            };
+            write_frame_exr(&path, &frame, &meta).unwrap();
+            let raw = read_channels(&path).unwrap();
+            let beauty_type = if half_beauty { "f16" } else { "f32" };
+            for name in channels::BEAUTY {
+                assert_eq!(raw.types[name], beauty_type, "{name} {write:?}");
+            }
+            assert_eq!(raw.types[channels::DEPTH], "f32");
+            assert_eq!(raw.types[channels::POSITION[0]], "f32");
+            assert_eq!(raw.attributes.layer_name, None);
+            let label = match raw.attributes.other.get(&header::text(header::OUTPUT)) {
+                Some(::exr::meta::attribute::AttributeValue::Text(text)) => text.to_string(),
+                other => panic!("snell.output is {other:?}"),
+            };
+            let beauty_label = if half_beauty { "half" } else { "float32" };
+            assert_eq!(
+                label,
+                format!("beauty={beauty_label} compression={}", compression.name())
+            );
+            let (read, _) = read_frame_exr(&path).unwrap();
+            let mut want = expected.clone();
+            if half_beauty {
+                for p in want.beauty_rgba.iter_mut().flatten() {
+                    *p = ::exr::prelude::f16::from_f32(p.min(65504.0)).to_f32();
+                }
+                assert!(read.beauty_rgba.iter().flatten().all(|v| v.is_finite()));
+            }
+            assert_bit_exact(&want, &read);
+        }
+    }
 }
