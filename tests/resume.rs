@@ -471,7 +471,7 @@ fn a_write_failing_mid_render_is_exit_1() {
     assert_eq!(temporary_files(&out), Vec::<PathBuf>::new());
     assert_eq!(frame_files(&out), Vec::new());
 
-    // The simulation checkpoints (fox_wading's ripple grid, 257x129 nodes: about 265 KB each)
+    // The simulation checkpoints (fox_wading's ripple grid, 385x193 nodes: about 600 KB each)
     // go through the same writes: the first one fails before any frame.
     let out = temp.path().join("fox");
     let args = render_args(&scene("fox_wading.toml"), &out, "1", SIZE);

@@ -216,3 +216,38 @@ fn unreadable_file_names_it() {
         "{message}"
     );
 }
+
+/// `[water.ripples]`: the old one-speed key is refused with what replaced it, and the dispersion
+/// relation's inputs are bounded.
+#[test]
+fn ripple_physics_keys() {
+    let message = assert_error(
+        "[water.ripples]\nspeed_m_per_s = 0.45\n",
+        2,
+        17,
+        "water.ripples.speed_m_per_s",
+        "no longer have one speed",
+    );
+    assert!(message.contains("remove speed_m_per_s"), "{message}");
+    assert_error(
+        "[water.ripples]\ndepth_m = 0.0\n",
+        2,
+        11,
+        "water.ripples.depth_m",
+        "must be between 0.005 and 1000 (got 0)",
+    );
+    assert_error(
+        "[water.ripples]\nsurface_tension_n_per_m = -0.07\n",
+        2,
+        27,
+        "water.ripples.surface_tension_n_per_m",
+        "must be between 0 and 1",
+    );
+    assert_error(
+        "[water.ripples]\ndensity_kg_per_m3 = 1e9\n",
+        2,
+        21,
+        "water.ripples.density_kg_per_m3",
+        "must be between 100 and 20000",
+    );
+}

@@ -19,7 +19,7 @@ use crate::water::{HeightField, WaveField};
 
 /// Bumped whenever the simulation's results change for the same inputs (scheme, coupling,
 /// defaults): checkpoints made by another version are then never used.
-const SIMULATION_VERSION: &str = "ripples-1";
+const SIMULATION_VERSION: &str = "ripples-2-spectral";
 
 /// One `[[character]]`, loaded.
 pub struct Character {
@@ -207,27 +207,41 @@ pub fn load_characters(
     Ok(characters)
 }
 
-/// The ripple grid of the scene's `[water.ripples]`, over the water's extent.
+/// The ripple grid of the scene's `[water.ripples]`, over the water's extent, band-limited to what
+/// the membrane resolves.
 pub fn ripple_settings(scene: &Scene) -> RippleSettings {
     let water = &scene.water;
     let ripples = &water.ripples;
     let spacing_m = (water.max_xz[0] - water.min_xz[0]) / (ripples.nodes[0] - 1) as f64;
-    RippleSettings {
+    let grid = water.grid();
+    let membrane_cell_m = ((grid.max_x - grid.min_x) / grid.cells_x as f64)
+        .max((grid.max_z - grid.min_z) / grid.cells_z as f64);
+    // The membrane's Nyquist wavenumber, or half the ripple grid's if that is lower (so the smooth
+    // field between nodes stays well resolved).
+    let pi = std::f64::consts::PI;
+    let cutoff_per_m = (pi / membrane_cell_m).min(0.5 * pi / spacing_m);
+    let mut settings = RippleSettings {
         nodes_x: ripples.nodes[0],
         nodes_z: ripples.nodes[1],
         min_x: water.min_xz[0],
         min_z: water.min_xz[1],
         spacing_m,
-        speed_m_per_s: ripples.speed_m_per_s,
+        depth_m: scene.ripple_depth_m(),
+        surface_tension_n_per_m: ripples.surface_tension_n_per_m,
+        density_kg_per_m3: ripples.density_kg_per_m3,
         damping_per_s: ripples.damping_per_s,
+        cutoff_per_m,
         border: ripples.border,
         sponge_nodes: (ripples.sponge_width_m / spacing_m).round() as u32,
-        // A ripple crossing the sponge (width w, at speed c) spends w / c in it. With an edge
-        // damping of 8 c / w on a quadratic ramp (mean: a third of it), its amplitude falls by
-        // e^(-gamma t / 2) = e^(-4/3) ~ 0.26 on the way in and again on the way out: about 7 %
-        // comes back, and the ramp has no sharp edge to reflect from.
-        sponge_damping_per_s: 8.0 * ripples.speed_m_per_s / ripples.sponge_width_m.max(spacing_m),
-    }
+        sponge_damping_per_s: 0.0,
+    };
+    // A ripple crossing the sponge (width w, at group speed c) spends w / c in it. With an edge
+    // damping of 8 c / w on a quadratic ramp (mean: a third of it), its amplitude falls by
+    // e^(-gamma t / 2) = e^(-4/3) ~ 0.26 on the way in and again on the way out: about 7 % of the
+    // fastest waves come back (less of the slower ones), and the ramp has no sharp edge to reflect from.
+    let fastest = settings.dispersion().fastest_group_speed(cutoff_per_m);
+    settings.sponge_damping_per_s = 8.0 * fastest / ripples.sponge_width_m.max(spacing_m);
+    settings
 }
 
 /// The simulation's key: the digest of the scene file and every file it references (see

@@ -73,7 +73,11 @@ pub(crate) struct RawRipples {
     pub enabled: Option<bool>,
     /// Grid nodes along x and z.
     pub resolution: Option<[i64; 2]>,
+    /// No longer a setting (ripples follow the dispersion relation); kept to say so.
     pub speed_m_per_s: Option<f64>,
+    pub depth_m: Option<f64>,
+    pub surface_tension_n_per_m: Option<f64>,
+    pub density_kg_per_m3: Option<f64>,
     pub damping_per_s: Option<f64>,
     pub border: Option<String>,
     pub sponge_width_m: Option<f64>,

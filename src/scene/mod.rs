@@ -135,7 +135,11 @@ pub struct RippleSpec {
     pub enabled: bool,
     /// Grid nodes along x and z.
     pub nodes: [u32; 2],
-    pub speed_m_per_s: f64,
+    /// Still-water depth for the dispersion relation; `None`: the pool's `depth_m` (see
+    /// [`Scene::ripple_depth_m`]).
+    pub depth_m: Option<f64>,
+    pub surface_tension_n_per_m: f64,
+    pub density_kg_per_m3: f64,
     pub damping_per_s: f64,
     pub border: crate::sim::Border,
     pub sponge_width_m: f64,
@@ -263,7 +267,25 @@ struct MeshPart<'a> {
     tint_srgb: [f64; 3],
 }
 
+/// The depth the ripples take for water with no pool and no `[water.ripples] depth_m`: deep enough
+/// that `tanh(k h) = 1` to 1e-6 for every wave longer than a metre.
+pub const OPEN_WATER_DEPTH_M: f64 = 10.0;
+
 impl Scene {
+    /// The still-water depth of the ripples' dispersion relation: `[water.ripples] depth_m`, else
+    /// the (first) pool's `depth_m`, else [`OPEN_WATER_DEPTH_M`].
+    pub fn ripple_depth_m(&self) -> f64 {
+        self.water.ripples.depth_m.unwrap_or_else(|| {
+            self.objects
+                .iter()
+                .find_map(|o| match &o.shape {
+                    ShapeSpec::Pool { depth_m, .. } => Some(*depth_m),
+                    _ => None,
+                })
+                .unwrap_or(OPEN_WATER_DEPTH_M)
+        })
+    }
+
     /// Reads and validates a scene file.
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
         let bytes = crate::files::read_regular(path, crate::files::MAX_SCENE_BYTES)

@@ -45,12 +45,11 @@ const DEFAULT_SUN_INTENSITY: f64 = 1.0;
 /// The real sun's angular diameter.
 const DEFAULT_SUN_SIZE_DEG: f64 = 0.53;
 const DEFAULT_FOV_DEG: f64 = 50.0;
-/// Ripple grid nodes along the water's longer side: ~4 cm cells over a 10 m pool, fine enough
-/// for the ripples a wading leg makes (wavelengths of a few cells and up).
-const DEFAULT_RIPPLE_NODES: i64 = 256;
+/// Ripple nodes per membrane cell along each axis by default: a node on every membrane vertex and
+/// one between, so the membrane samples the ripple nodes themselves and the smooth field between
+/// them is well within the grid's own resolution (the band limit is the membrane's, half the grid's).
+const DEFAULT_RIPPLE_NODES_PER_CELL: i64 = 2;
 const MAX_RIPPLE_NODES: i64 = 4096;
-/// Short gravity-capillary ripples (wavelength ~10 cm) travel at roughly half a metre a second.
-const DEFAULT_RIPPLE_SPEED_M_PER_S: f64 = 0.5;
 /// Ripples from a wading animal die down within a few seconds.
 const DEFAULT_RIPPLE_DAMPING_PER_S: f64 = 0.5;
 const DEFAULT_SPONGE_WIDTH_M: f64 = 0.5;
@@ -384,27 +383,45 @@ fn water(raw: &RawWater, has_characters: bool, map: &SourceMap<'_>) -> Result<Wa
         absorption_per_m,
         scatter_color_linear: srgb_to_linear3(scatter),
         waves,
-        ripples: ripples(raw.ripples.as_ref(), has_characters, min_xz, max_xz, map)?,
+        ripples: ripples(
+            raw.ripples.as_ref(),
+            has_characters,
+            (min_xz, max_xz),
+            [resolution[0], resolution[1]],
+            map,
+        )?,
     })
 }
 
 /// Ripples are on when the scene has characters to make them, unless `enabled = false`.
+/// `membrane_cells` is `[water] resolution`: the default ripple grid has
+/// [`DEFAULT_RIPPLE_NODES_PER_CELL`] nodes per membrane cell.
 fn ripples(
     raw: Option<&RawRipples>,
     has_characters: bool,
-    min_xz: [f64; 2],
-    max_xz: [f64; 2],
+    (min_xz, max_xz): ([f64; 2], [f64; 2]),
+    membrane_cells: [i64; 2],
     map: &SourceMap<'_>,
 ) -> Result<RippleSpec> {
     let path = KeyPath::root().key("water").key("ripples");
     let default = RawRipples::default();
     let raw = raw.unwrap_or(&default);
+    if raw.speed_m_per_s.is_some() {
+        return Err(map.error(
+            &path.key("speed_m_per_s"),
+            "ripples no longer have one speed: they are water waves, each wavelength travelling at \
+             the speed water's dispersion relation gives it over the pool's depth",
+            "remove speed_m_per_s; long waves travel at sqrt(9.81 * depth), so a shallower pool \
+             (the pool's depth_m, or [water.ripples] depth_m) makes them slower",
+        ));
+    }
     let (width_m, depth_m) = (max_xz[0] - min_xz[0], max_xz[1] - min_xz[1]);
-    // Square cells, DEFAULT_RIPPLE_NODES along the longer side.
-    let longer_m = width_m.max(depth_m);
+    // Square cells, DEFAULT_RIPPLE_NODES_PER_CELL per membrane cell along the finer axis.
+    let spacing_m = (width_m / membrane_cells[0] as f64).min(depth_m / membrane_cells[1] as f64)
+        / DEFAULT_RIPPLE_NODES_PER_CELL as f64;
     let default_nodes = [
-        ((DEFAULT_RIPPLE_NODES - 1) as f64 * width_m / longer_m).round() as i64 + 1,
-        ((DEFAULT_RIPPLE_NODES - 1) as f64 * depth_m / longer_m).round() as i64 + 1,
+        ((width_m / spacing_m).round() as i64 + 1).min(MAX_RIPPLE_NODES),
+        ((depth_m / spacing_m).round() as i64 + 1).min(MAX_RIPPLE_NODES),
     ];
     let nodes = raw.resolution.unwrap_or(default_nodes);
     if nodes.iter().any(|&n| !(3..=MAX_RIPPLE_NODES).contains(&n)) {
@@ -434,11 +451,34 @@ fn ripples(
             ),
         ));
     }
-    let speed_m_per_s = raw.speed_m_per_s.unwrap_or(DEFAULT_RIPPLE_SPEED_M_PER_S);
-    positive(
-        speed_m_per_s,
-        &path.key("speed_m_per_s"),
-        "speed_m_per_s = 0.5",
+    let water_depth_m = raw.depth_m;
+    if let Some(value) = water_depth_m {
+        within(
+            value,
+            (0.005, 1000.0),
+            &path.key("depth_m"),
+            "depth_m = 0.5",
+            map,
+        )?;
+    }
+    let surface_tension_n_per_m = raw
+        .surface_tension_n_per_m
+        .unwrap_or(crate::sim::ripples::WATER_SURFACE_TENSION_N_PER_M);
+    within(
+        surface_tension_n_per_m,
+        (0.0, 1.0),
+        &path.key("surface_tension_n_per_m"),
+        "surface_tension_n_per_m = 0.0728",
+        map,
+    )?;
+    let density_kg_per_m3 = raw
+        .density_kg_per_m3
+        .unwrap_or(crate::sim::ripples::WATER_DENSITY_KG_PER_M3);
+    within(
+        density_kg_per_m3,
+        (100.0, 20_000.0),
+        &path.key("density_kg_per_m3"),
+        "density_kg_per_m3 = 1000",
         map,
     )?;
     let damping_per_s = raw.damping_per_s.unwrap_or(DEFAULT_RIPPLE_DAMPING_PER_S);
@@ -478,7 +518,9 @@ fn ripples(
     Ok(RippleSpec {
         enabled: raw.enabled.unwrap_or(has_characters),
         nodes: [nodes[0] as u32, nodes[1] as u32],
-        speed_m_per_s,
+        depth_m: water_depth_m,
+        surface_tension_n_per_m,
+        density_kg_per_m3,
         damping_per_s,
         border,
         sponge_width_m,
@@ -1341,6 +1383,25 @@ fn positive(value: f64, at: &KeyPath, example: &str, map: &SourceMap<'_>) -> Res
         Err(map.error(
             at,
             format!("must be positive (got {value})"),
+            format!("set e.g. {example}"),
+        ))
+    }
+}
+
+/// `value` in `[low, high]` (and finite).
+fn within(
+    value: f64,
+    (low, high): (f64, f64),
+    at: &KeyPath,
+    example: &str,
+    map: &SourceMap<'_>,
+) -> Result<()> {
+    if (low..=high).contains(&value) {
+        Ok(())
+    } else {
+        Err(map.error(
+            at,
+            format!("must be between {low} and {high} (got {value})"),
             format!("set e.g. {example}"),
         ))
     }

@@ -241,20 +241,13 @@ fn decode(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sim::ripples::Border;
 
     fn settings() -> RippleSettings {
         RippleSettings {
-            nodes_x: 5,
-            nodes_z: 3,
             min_x: 0.0,
             min_z: 0.0,
-            spacing_m: 0.1,
-            speed_m_per_s: 0.5,
             damping_per_s: 0.1,
-            border: Border::Reflect,
-            sponge_nodes: 0,
-            sponge_damping_per_s: 0.0,
+            ..crate::sim::spectral::tests::settings(5, 3, 0.1)
         }
     }
 

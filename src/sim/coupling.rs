@@ -164,22 +164,14 @@ fn box3(values: &[f32], nx: usize, nz: usize) -> Vec<f32> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sim::ripples::Border;
     use crate::water::FlatHeightField;
 
     fn grid() -> RippleSettings {
         RippleSettings {
-            nodes_x: 41,
-            nodes_z: 41,
             // Binary fractions: nodes fall exactly on the test boxes' edges (the tie rule's case).
             min_x: -1.25,
             min_z: -1.25,
-            spacing_m: 0.0625,
-            speed_m_per_s: 0.5,
-            damping_per_s: 0.0,
-            border: Border::Reflect,
-            sponge_nodes: 0,
-            sponge_damping_per_s: 0.0,
+            ..crate::sim::spectral::tests::settings(41, 41, 0.0625)
         }
     }
 

@@ -5,12 +5,15 @@
 //! frame is the same bits whichever way it was reached.
 //!
 //! The ripple state at the timeline's first frame is calm water; the step from frame `f - 1` to
-//! `f` adds the displacement of the occupancy change between the two frames, spread over the
-//! substeps of that frame interval.
+//! `f` integrates the waves exactly over that frame interval (see [`spectral`]) with the
+//! displacement of the occupancy change between the two frames as a source spread evenly over it.
 
 pub mod checkpoint;
 pub mod coupling;
+#[cfg(test)]
+mod physics_tests;
 pub mod ripples;
+pub mod spectral;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -18,9 +21,8 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, OnceLock};
 
 pub use checkpoint::{CheckpointError, CheckpointKey, CheckpointStore, KeyHasher};
-pub use ripples::{
-    Border, RippleField, RippleSettings, RippleState, RippleStepper, SumHeightField,
-};
+pub use ripples::{Border, RippleField, RippleSettings, RippleState, SumHeightField};
+pub use spectral::{Dispersion, RippleStepper};
 
 /// How many recent states the simulation keeps in memory (a frame and the one before it are
 /// what a render asks for; a few more make scrubbing back cheap).
@@ -40,7 +42,6 @@ pub struct Simulation {
     /// Scales the displacement bodies cause (1 = the displaced volume).
     strength: f64,
     first_frame: u32,
-    frame_secs: f64,
     /// What checkpoints of this simulation are keyed by.
     key: CheckpointKey,
     store: OnceLock<CheckpointStore>,
@@ -66,10 +67,9 @@ impl Simulation {
         key: CheckpointKey,
     ) -> Self {
         Simulation {
-            stepper: RippleStepper::new(settings),
+            stepper: RippleStepper::new(settings, 1.0 / fps),
             strength,
             first_frame,
-            frame_secs: 1.0 / fps,
             key,
             store: OnceLock::new(),
             recent: Mutex::new(BTreeMap::new()),
@@ -155,8 +155,7 @@ impl Simulation {
             let before = occupancy_at.unwrap_or_else(|| Arc::new(occupancy(at)));
             let after = Arc::new(occupancy(at + 1));
             let push = coupling::displacement(self.settings(), &before, &after, self.strength);
-            self.stepper
-                .advance_frame(&mut state, self.frame_secs, &push);
+            self.stepper.advance_frame(&mut state, &push);
             at += 1;
             self.stepped.fetch_add(1, Ordering::Relaxed);
             self.save(at, &state)?;
@@ -205,16 +204,9 @@ mod tests {
 
     fn settings() -> RippleSettings {
         RippleSettings {
-            nodes_x: 48,
-            nodes_z: 32,
-            min_x: -1.2,
-            min_z: -0.8,
-            spacing_m: 0.05,
-            speed_m_per_s: 0.6,
             damping_per_s: 0.3,
-            border: Border::Reflect,
-            sponge_nodes: 0,
-            sponge_damping_per_s: 0.0,
+            depth_m: 0.3,
+            ..spectral::tests::settings(48, 32, 0.05)
         }
     }
 

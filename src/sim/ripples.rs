@@ -1,61 +1,50 @@
-//! Ripples: a damped wave equation on a height grid over the water, stepped with a fixed time step.
-//!
-//! The equation is `u_tt = c^2 lap(u) - gamma u_t` (u: ripple height, c: wave speed, gamma: damping
-//! per second, larger in the sponge border when the border absorbs). The scheme is leapfrog in
-//! velocity form with centred damping:
-//!
-//! ```text
-//! v' = ((1 - gamma h / 2) v + h c^2 L u) / (1 + gamma h / 2)
-//! u' = u + h v'
-//! ```
-//!
-//! with `L` the 5-point Laplacian whose missing neighbours at the border are mirrored (Neumann: the
-//! walls reflect), which makes `-L` a symmetric positive semi-definite matrix with eigenvalues below
-//! `8 / dx^2`. Taking the inner product of the scheme with `u^{n+1} - u^{n-1}` shows that the
-//! discrete energy (see [`RippleState::energy`])
-//!
-//! ```text
-//! E^{n+1/2} = 1/2 |v^{n+1}|^2 + 1/2 c^2 (u^{n+1})^T (-L) u^n
-//! ```
-//!
-//! changes per step by exactly `-(gamma / 4h) |u^{n+1} - u^{n-1}|^2 <= 0`: it never grows, and
-//! without damping it is conserved. It is a positive form, so bounds the state, only when
-//! `h^2 c^2 8 / dx^2 < 4`, i.e. the **stability condition** `c h / dx < 1 / sqrt(2)`.
-//! [`RippleSettings::substeps_per_frame`] picks the fewest equal substeps with
-//! `c h / dx <= MAX_COURANT = 0.5`, a margin under that limit.
-//!
-//! Every node is updated from the previous values alone, rows in parallel, so the same inputs give
-//! the same bits whatever the thread count.
-
-use rayon::prelude::*;
+//! Ripples: the state of the simulated water waves on a grid of nodes over the water (height and
+//! vertical velocity per node), their settings, and the smooth height field through the nodes that
+//! the membrane, the refraction and the reference all sample (one surface for every method).
+//! The waves' dynamics — linear water waves with their dispersion relation, integrated exactly
+//! per mode of a cosine transform — are in [`super::spectral`].
 
 use crate::water::HeightField;
 
-/// The largest Courant number `c h / dx` the stepper uses; the scheme is stable below `1/sqrt(2)`.
-pub const MAX_COURANT: f64 = 0.5;
+pub use super::spectral::RippleStepper;
 
 /// What happens to ripples at the edge of the grid.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Border {
-    /// Mirror boundary (zero normal derivative): ripples bounce off the pool walls.
+    /// The pool's walls: zero normal flux, so ripples bounce off them (exact: the cosine modes of
+    /// the transform are the walls' own modes).
     Reflect,
-    /// A sponge layer whose damping rises quadratically toward the edge: ripples leave the grid.
+    /// A sponge layer whose damping rises quadratically toward the edge: ripples leave the grid
+    /// (about 7 % comes back from the walls behind it).
     Absorb,
 }
+
+/// Surface tension of clean water against air at about 20 C, N/m.
+pub const WATER_SURFACE_TENSION_N_PER_M: f64 = 0.0728;
+/// Density of water, kg/m^3.
+pub const WATER_DENSITY_KG_PER_M3: f64 = 1000.0;
 
 /// The simulation's settings as the scene states them (all in SI units).
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct RippleSettings {
-    /// Nodes along x and z of the ripple grid (a node every `spacing_m`).
+    /// Nodes along x and z of the ripple grid (a node every `spacing_m`, the first and last ones on
+    /// the walls).
     pub nodes_x: u32,
     pub nodes_z: u32,
     /// (x, z) of the node (0, 0), metres.
     pub min_x: f64,
     pub min_z: f64,
     pub spacing_m: f64,
-    pub speed_m_per_s: f64,
+    /// Still-water depth (the pool's), metres: the `h` of the dispersion relation.
+    pub depth_m: f64,
+    pub surface_tension_n_per_m: f64,
+    pub density_kg_per_m3: f64,
+    /// Amplitudes fall as `exp(-damping_per_s t / 2)` (the equation's `gamma`), every wavelength alike.
     pub damping_per_s: f64,
+    /// The band limit, rad/m: no mode of wavenumber above it carries energy, and the bodies' source
+    /// is tapered to zero there (see [`super::spectral`]).
+    pub cutoff_per_m: f64,
     pub border: Border,
     /// Width of the sponge layer of an absorbing border, in nodes.
     pub sponge_nodes: u32,
@@ -64,20 +53,23 @@ pub struct RippleSettings {
 }
 
 impl RippleSettings {
-    /// Equal substeps per frame interval `frame_secs` that keep `c h / dx <= MAX_COURANT`.
-    pub fn substeps_per_frame(&self, frame_secs: f64) -> u32 {
-        let max_step_secs = MAX_COURANT * self.spacing_m / self.speed_m_per_s;
-        ((frame_secs / max_step_secs).ceil() as u32).max(1)
-    }
-
     pub fn node_count(&self) -> usize {
         self.nodes_x as usize * self.nodes_z as usize
     }
 
-    /// Damping per node: the base damping, plus the sponge toward the edges when absorbing.
-    fn damping_per_node(&self) -> Vec<f32> {
+    /// The dispersion relation of these waves.
+    pub fn dispersion(&self) -> super::spectral::Dispersion {
+        super::spectral::Dispersion {
+            gravity_m_per_s2: crate::water::GRAVITY_M_PER_S2,
+            tension_over_density_m3_per_s2: self.surface_tension_n_per_m / self.density_kg_per_m3,
+            depth_m: self.depth_m,
+        }
+    }
+
+    /// The sponge's damping per node (per second; zero outside the layer and when reflecting).
+    pub(crate) fn sponge_per_node(&self) -> Vec<f64> {
         let (nx, nz) = (self.nodes_x as usize, self.nodes_z as usize);
-        let mut damping = vec![self.damping_per_s as f32; nx * nz];
+        let mut damping = vec![0.0; nx * nz];
         if self.border == Border::Absorb && self.sponge_nodes > 0 {
             let width = self.sponge_nodes as f64;
             for iz in 0..nz {
@@ -85,9 +77,8 @@ impl RippleSettings {
                     let to_edge = ix.min(nx - 1 - ix).min(iz).min(nz - 1 - iz) as f64;
                     if to_edge < width {
                         let depth_into_sponge = (width - to_edge) / width;
-                        damping[iz * nx + ix] +=
-                            (self.sponge_damping_per_s * depth_into_sponge * depth_into_sponge)
-                                as f32;
+                        damping[iz * nx + ix] =
+                            self.sponge_damping_per_s * depth_into_sponge * depth_into_sponge;
                     }
                 }
             }
@@ -97,92 +88,13 @@ impl RippleSettings {
 }
 
 /// The ripple field at one instant: height and vertical velocity per node, row-major (z then x).
+/// The velocity is the part of the surface's vertical velocity the flow carries (the mode
+/// variable `b` of [`super::spectral`]); a body's source adds to it while it pushes.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RippleState {
     pub settings: RippleSettings,
     pub height_m: Vec<f32>,
     pub velocity_m_per_s: Vec<f32>,
-}
-
-/// Steps [`RippleState`]s: the settings with the per-node damping precomputed.
-pub struct RippleStepper {
-    settings: RippleSettings,
-    damping_per_s: Vec<f32>,
-}
-
-impl RippleStepper {
-    pub fn new(settings: RippleSettings) -> Self {
-        RippleStepper {
-            settings,
-            damping_per_s: settings.damping_per_node(),
-        }
-    }
-
-    pub fn settings(&self) -> &RippleSettings {
-        &self.settings
-    }
-
-    /// One step of `step_secs` (the caller keeps `c h / dx` under `1/sqrt(2)`).
-    pub fn step(&self, state: &mut RippleState, step_secs: f64) {
-        let s = &self.settings;
-        let (nx, nz) = (s.nodes_x as usize, s.nodes_z as usize);
-        let h = step_secs as f32;
-        let c2_over_dx2 = (s.speed_m_per_s * s.speed_m_per_s / (s.spacing_m * s.spacing_m)) as f32;
-        let height = &state.height_m;
-        let damping = &self.damping_per_s;
-        state
-            .velocity_m_per_s
-            .par_chunks_mut(nx)
-            .enumerate()
-            .for_each(|(iz, velocity_row)| {
-                let row = iz * nx;
-                for (ix, velocity) in velocity_row.iter_mut().enumerate() {
-                    let at = row + ix;
-                    let centre = height[at];
-                    // Mirrored neighbours: a missing one equals the centre (zero flux).
-                    let west = if ix > 0 { height[at - 1] } else { centre };
-                    let east = if ix + 1 < nx { height[at + 1] } else { centre };
-                    let south = if iz > 0 { height[at - nx] } else { centre };
-                    let north = if iz + 1 < nz { height[at + nx] } else { centre };
-                    let laplacian =
-                        (west - centre) + (east - centre) + (south - centre) + (north - centre);
-                    let half_damping = 0.5 * damping[at] * h;
-                    *velocity = ((1.0 - half_damping) * *velocity + h * c2_over_dx2 * laplacian)
-                        / (1.0 + half_damping);
-                }
-            });
-        state
-            .height_m
-            .par_chunks_mut(nx)
-            .zip(state.velocity_m_per_s.par_chunks(nx))
-            .for_each(|(height_row, velocity_row)| {
-                for (height, velocity) in height_row.iter_mut().zip(velocity_row) {
-                    *height += h * velocity;
-                }
-            });
-    }
-
-    /// Advances one frame interval of `frame_secs` in equal substeps, adding `displacement_m`
-    /// (per node, may be empty) spread evenly over the substeps.
-    pub fn advance_frame(&self, state: &mut RippleState, frame_secs: f64, displacement_m: &[f32]) {
-        let substeps = self.settings.substeps_per_frame(frame_secs);
-        let step_secs = frame_secs / substeps as f64;
-        let share = 1.0 / substeps as f32;
-        for _ in 0..substeps {
-            if !displacement_m.is_empty() {
-                state
-                    .height_m
-                    .par_chunks_mut(4096)
-                    .zip(displacement_m.par_chunks(4096))
-                    .for_each(|(heights, pushes)| {
-                        for (height, push) in heights.iter_mut().zip(pushes) {
-                            *height += share * push;
-                        }
-                    });
-            }
-            self.step(state, step_secs);
-        }
-    }
 }
 
 impl RippleState {
@@ -193,35 +105,6 @@ impl RippleState {
             height_m: vec![0.0; settings.node_count()],
             velocity_m_per_s: vec![0.0; settings.node_count()],
         }
-    }
-
-    /// The scheme's discrete energy (per unit density, summed over nodes, in units of m^2/s^2;
-    /// see the module docs) for the last step of `step_secs`: with `u^n = u - h v`,
-    /// `1/2 |v|^2 + 1/2 c^2 / dx^2 * sum over grid edges (u_i - u_j)(u^n_i - u^n_j)`.
-    pub fn energy(&self, step_secs: f64) -> f64 {
-        let s = &self.settings;
-        let (nx, nz) = (s.nodes_x as usize, s.nodes_z as usize);
-        let c2_over_dx2 = s.speed_m_per_s * s.speed_m_per_s / (s.spacing_m * s.spacing_m);
-        let now = |at: usize| self.height_m[at] as f64;
-        let before = |at: usize| now(at) - step_secs * self.velocity_m_per_s[at] as f64;
-        let mut kinetic = 0.0;
-        let mut potential = 0.0;
-        for iz in 0..nz {
-            for ix in 0..nx {
-                let at = iz * nx + ix;
-                kinetic += 0.5 * (self.velocity_m_per_s[at] as f64).powi(2);
-                for neighbour in [
-                    (ix + 1 < nx).then(|| at + 1),
-                    (iz + 1 < nz).then(|| at + nx),
-                ]
-                .into_iter()
-                .flatten()
-                {
-                    potential += (now(at) - now(neighbour)) * (before(at) - before(neighbour));
-                }
-            }
-        }
-        kinetic + 0.5 * c2_over_dx2 * potential
     }
 
     /// Largest |height| over the grid, metres.
@@ -261,6 +144,16 @@ fn catmull_rom(t: f64) -> ([f64; 4], [f64; 4]) {
     )
 }
 
+/// Node index `i` of `n` along an axis, mirrored about the edge nodes (-1 -> 1, n -> n - 2): the
+/// even extension at a wall, the symmetry of the cosine modes the simulation is made of, so the
+/// field's slope across a wall is zero as the walls' boundary condition says.
+fn mirrored(i: i64, n: i64) -> usize {
+    let last = n - 1;
+    let i = if i < 0 { -i } else { i };
+    let i = if i > last { 2 * last - i } else { i };
+    i.clamp(0, last) as usize
+}
+
 /// Second derivatives (per unit parameter squared) of the Catmull-Rom weights at fraction `t`.
 fn catmull_rom_second(t: f64) -> [f64; 4] {
     [2.0 - 3.0 * t, 9.0 * t - 5.0, 4.0 - 9.0 * t, 3.0 * t - 1.0]
@@ -286,9 +179,9 @@ impl RippleField<'_> {
         let ((wz, dwz), ddwz) = (catmull_rom(tz), catmull_rom_second(tz));
         let mut sums = [0.0; 6];
         for j in 0..4 {
-            let iz = (cz - 1 + j as i64).clamp(0, nz - 1) as usize;
+            let iz = mirrored(cz - 1 + j as i64, nz);
             for i in 0..4 {
-                let ix = (cx - 1 + i as i64).clamp(0, nx - 1) as usize;
+                let ix = mirrored(cx - 1 + i as i64, nx);
                 let u = self.state.height_m[iz * nx as usize + ix] as f64;
                 sums[0] += wx[i] * wz[j] * u;
                 sums[1] += dwx[i] * wz[j] * u;
@@ -324,10 +217,9 @@ impl RippleField<'_> {
         let (wz, dwz) = catmull_rom(gz - cz as f64);
         let (mut height, mut ddx, mut ddz) = (0.0, 0.0, 0.0);
         for (j, (wzj, dwzj)) in wz.iter().zip(&dwz).enumerate() {
-            // Clamped indices: the mirrored border of the simulation.
-            let iz = (cz - 1 + j as i64).clamp(0, nz - 1) as usize;
+            let iz = mirrored(cz - 1 + j as i64, nz);
             for (i, (wxi, dwxi)) in wx.iter().zip(&dwx).enumerate() {
-                let ix = (cx - 1 + i as i64).clamp(0, nx - 1) as usize;
+                let ix = mirrored(cx - 1 + i as i64, nx);
                 let u = self.state.height_m[iz * nx as usize + ix] as f64;
                 height += wxi * wzj * u;
                 ddx += dwxi * wzj * u;
@@ -433,19 +325,9 @@ impl HeightField for SumHeightField<'_> {
 mod tests {
     use super::*;
 
-    fn settings(nodes: u32, border: Border, damping_per_s: f64) -> RippleSettings {
-        RippleSettings {
-            nodes_x: nodes,
-            nodes_z: nodes,
-            min_x: -1.0,
-            min_z: -1.0,
-            spacing_m: 2.0 / (nodes - 1) as f64,
-            speed_m_per_s: 0.5,
-            damping_per_s,
-            border,
-            sponge_nodes: 8,
-            sponge_damping_per_s: 20.0,
-        }
+    /// `nodes x nodes` over [-1, 1]^2.
+    fn settings(nodes: u32) -> RippleSettings {
+        crate::sim::spectral::tests::settings(nodes, nodes, 2.0 / (nodes - 1) as f64)
     }
 
     /// A narrow Gaussian bump of `amplitude_m` and width `sigma_m` at (x, z), at rest.
@@ -458,144 +340,9 @@ mod tests {
             let r2 = (px - x).powi(2) + (pz - z).powi(2);
             *height = (0.01 * (-r2 / (2.0 * sigma_m * sigma_m)).exp()) as f32;
         }
+        // On the grid: the tests below are not about zeros.
+        assert!(state.max_abs_height_m() > 0.005);
         state
-    }
-
-    #[test]
-    fn substeps_keep_the_courant_number_under_the_limit() {
-        let s = settings(201, Border::Reflect, 0.0);
-        for fps in [12.0, 24.0, 30.0, 60.0, 240.0] {
-            let frame_secs = 1.0 / fps;
-            let n = s.substeps_per_frame(frame_secs);
-            let courant = s.speed_m_per_s * (frame_secs / n as f64) / s.spacing_m;
-            assert!(
-                courant <= MAX_COURANT + 1e-12,
-                "fps {fps}: courant {courant}"
-            );
-            assert!(courant < 1.0 / 2f64.sqrt());
-            // The fewest such substeps: one fewer would break the margin.
-            if n > 1 {
-                let coarser = s.speed_m_per_s * (frame_secs / (n - 1) as f64) / s.spacing_m;
-                assert!(coarser > MAX_COURANT);
-            }
-        }
-    }
-
-    /// A single impulse spreads as a ring whose crest travels at the wave speed.
-    #[test]
-    fn an_impulse_spreads_as_a_ring_at_the_wave_speed() {
-        let s = settings(301, Border::Absorb, 0.0);
-        let stepper = RippleStepper::new(s);
-        let mut state = impulse(s, 0.0, 0.0, 0.02);
-        let step_secs = MAX_COURANT * s.spacing_m / s.speed_m_per_s;
-        let nx = s.nodes_x as usize;
-        for steps in [120usize, 240] {
-            let mut state_at = state.clone();
-            for _ in 0..steps {
-                stepper.step(&mut state_at, step_secs);
-            }
-            let elapsed_secs = steps as f64 * step_secs;
-            let expected_radius_m = s.speed_m_per_s * elapsed_secs;
-            // Radial profile: mean height in rings one node wide; the crest is its maximum.
-            let rings = nx / 2;
-            let (mut sum, mut count) = (vec![0.0f64; rings], vec![0usize; rings]);
-            for (at, height) in state_at.height_m.iter().enumerate() {
-                let px = s.min_x + (at % nx) as f64 * s.spacing_m;
-                let pz = s.min_z + (at / nx) as f64 * s.spacing_m;
-                let ring = ((px * px + pz * pz).sqrt() / s.spacing_m).round() as usize;
-                if ring < rings {
-                    sum[ring] += *height as f64;
-                    count[ring] += 1;
-                }
-            }
-            let crest_ring = (3..rings)
-                .max_by(|&a, &b| (sum[a] / count[a] as f64).total_cmp(&(sum[b] / count[b] as f64)))
-                .unwrap();
-            let crest_radius_m = crest_ring as f64 * s.spacing_m;
-            // The crest of a 2-D pulse trails the front (cT) by about the pulse width; the grid
-            // adds a node. Both fractions of the radius shrink as it grows.
-            let tolerance_m = 3.0 * 0.02 + 2.0 * s.spacing_m;
-            assert!(
-                (crest_radius_m - expected_radius_m).abs() <= tolerance_m,
-                "after {elapsed_secs:.3} s the crest is at {crest_radius_m:.3} m, expected {expected_radius_m:.3} m"
-            );
-            // And it is a ring: the centre has fallen far below the crest.
-            let centre = state_at.height_m[(nx / 2) * nx + nx / 2].abs() as f64;
-            assert!(centre < 0.5 * sum[crest_ring] / count[crest_ring] as f64);
-            if steps == 240 {
-                state = state_at;
-            }
-        }
-        assert!(state.max_abs_height_m() > 0.0);
-    }
-
-    /// The discrete energy never grows over 10,000 steps; it is conserved without damping (up to
-    /// f32 rounding) and falls with damping, for both borders.
-    #[test]
-    fn energy_never_grows_and_decays_with_damping() {
-        for border in [Border::Reflect, Border::Absorb] {
-            for damping_per_s in [0.0, 0.5] {
-                let s = settings(65, border, damping_per_s);
-                let stepper = RippleStepper::new(s);
-                let mut state = impulse(s, 0.2, -0.1, 0.08);
-                let step_secs = 0.7 / 2f64.sqrt() * s.spacing_m / s.speed_m_per_s;
-                stepper.step(&mut state, step_secs);
-                let start = state.energy(step_secs);
-                let mut previous = start;
-                for step in 0..10_000 {
-                    stepper.step(&mut state, step_secs);
-                    let energy = state.energy(step_secs);
-                    // f32 state: rounding shows as relative noise of a few 1e-7 of the current
-                    // energy, and, once damping has brought the field down to the last bits of
-                    // f32, as absolute noise far under 1e-12 of the start. A real rise (an
-                    // unstable or energy-making scheme) grows geometrically past both.
-                    assert!(
-                        energy <= previous * (1.0 + 1e-5) + 1e-12 * start,
-                        "{border:?} damping {damping_per_s}: energy rose at step {step}: {previous:e} -> {energy:e}"
-                    );
-                    assert!(
-                        energy >= -1e-12,
-                        "energy is a positive form under the CFL limit"
-                    );
-                    previous = energy;
-                }
-                let ratio = previous / start;
-                if damping_per_s == 0.0 && border == Border::Reflect {
-                    assert!(
-                        (ratio - 1.0).abs() < 1e-3,
-                        "conserved without damping: {ratio}"
-                    );
-                } else {
-                    assert!(
-                        ratio < 0.05,
-                        "{border:?} {damping_per_s}: decays, kept {ratio}"
-                    );
-                }
-            }
-        }
-    }
-
-    #[test]
-    fn stepping_is_deterministic_and_symmetric() {
-        let s = settings(41, Border::Reflect, 0.2);
-        let stepper = RippleStepper::new(s);
-        let run = || {
-            let mut state = impulse(s, 0.0, 0.0, 0.1);
-            for _ in 0..50 {
-                stepper.advance_frame(&mut state, 1.0 / 24.0, &[]);
-            }
-            state
-        };
-        let (a, b) = (run(), run());
-        assert_eq!(a.height_m, b.height_m);
-        // A centred impulse stays mirror-symmetric in x.
-        let nx = 41;
-        for iz in 0..nx {
-            for ix in 0..nx {
-                let (p, q) = (a.height_m[iz * nx + ix], a.height_m[iz * nx + nx - 1 - ix]);
-                assert!((p - q).abs() <= 1e-6 * a.max_abs_height_m());
-            }
-        }
     }
 
     #[test]
@@ -632,7 +379,7 @@ mod tests {
 
     #[test]
     fn ripple_bounds_hold_on_a_bumpy_field() {
-        let s = settings(41, Border::Reflect, 0.0);
+        let s = settings(41);
         let state = impulse(s, 0.1, -0.2, 0.12);
         let field = state.field();
         let (slope, curvature) = field.slope_and_curvature_bounds();
@@ -654,7 +401,7 @@ mod tests {
 
     #[test]
     fn the_field_interpolates_nodes_and_its_gradient_is_the_derivative() {
-        let s = settings(21, Border::Reflect, 0.0);
+        let s = settings(21);
         let state = impulse(s, 0.1, 0.05, 0.3);
         let field = state.field();
         // Through the nodes exactly.
@@ -682,7 +429,7 @@ mod tests {
     /// inside cells (the C1 bicubic's second derivatives jump across node lines).
     #[test]
     fn the_hessian_is_the_derivative_of_the_gradient_inside_a_cell() {
-        let s = settings(21, Border::Reflect, 0.0);
+        let s = settings(21);
         let state = impulse(s, 0.1, 0.05, 0.3);
         let field = state.field();
         // Node spacing 0.1 m from -1: these points are >= 0.02 m from every node line.
