@@ -218,7 +218,7 @@ fn unreadable_file_names_it() {
 }
 
 /// `[water.ripples]`: the old one-speed key is refused with what replaced it, and the dispersion
-/// relation's inputs are bounded.
+/// relation's inputs are bounded (`src/scene/limits.rs`).
 #[test]
 fn ripple_physics_keys() {
     let message = assert_error(
@@ -234,20 +234,20 @@ fn ripple_physics_keys() {
         2,
         11,
         "water.ripples.depth_m",
-        "must be between 0.005 and 1000 (got 0)",
+        "from 0.005 to 1000 m",
     );
     assert_error(
         "[water.ripples]\nsurface_tension_n_per_m = -0.07\n",
         2,
         27,
         "water.ripples.surface_tension_n_per_m",
-        "must be between 0 and 1",
+        "from 0 to 1 N/m",
     );
     assert_error(
         "[water.ripples]\ndensity_kg_per_m3 = 1e9\n",
         2,
         21,
         "water.ripples.density_kg_per_m3",
-        "must be between 100 and 20000",
+        "from 100 to 20000 kg/m^3",
     );
 }

@@ -134,7 +134,7 @@ pub fn check_loaded(
                      their stability limit at {} fps), more than {MAX_RIPPLE_NODE_STEPS}",
                     estimate.ripple_nodes, scene.timeline.fps
                 ),
-                "use fewer ripple nodes, a lower speed_m_per_s or a higher fps",
+                "use fewer ripple nodes (a coarser [water.ripples] resolution)",
             )
             .into());
     }

@@ -379,9 +379,9 @@ impl RenderJob {
         let scene_files = inputs::digest_scene_files(&scene, &loaded)?;
         let dynamics = characters::Dynamics::new(&scene, loaded, &scene_files)?;
         let ripple_node_steps = dynamics.simulation.as_ref().map_or(0, |simulation| {
-            let settings = simulation.settings();
-            settings.node_count() as u64
-                * settings.substeps_per_frame(1.0 / scene.timeline.fps) as u64
+            // The spectral step integrates a whole frame exactly: no substeps, one pass of a few
+            // cosine transforms over the nodes.
+            simulation.settings().node_count() as u64
         });
         let resources =
             limits::check_loaded(&scene, &dynamics.characters, &textures, ripple_node_steps)?;

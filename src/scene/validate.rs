@@ -451,36 +451,14 @@ fn ripples(
             ),
         ));
     }
+    // Their ranges are checked where they are written (`super::limits`).
     let water_depth_m = raw.depth_m;
-    if let Some(value) = water_depth_m {
-        within(
-            value,
-            (0.005, 1000.0),
-            &path.key("depth_m"),
-            "depth_m = 0.5",
-            map,
-        )?;
-    }
     let surface_tension_n_per_m = raw
         .surface_tension_n_per_m
         .unwrap_or(crate::sim::ripples::WATER_SURFACE_TENSION_N_PER_M);
-    within(
-        surface_tension_n_per_m,
-        (0.0, 1.0),
-        &path.key("surface_tension_n_per_m"),
-        "surface_tension_n_per_m = 0.0728",
-        map,
-    )?;
     let density_kg_per_m3 = raw
         .density_kg_per_m3
         .unwrap_or(crate::sim::ripples::WATER_DENSITY_KG_PER_M3);
-    within(
-        density_kg_per_m3,
-        (100.0, 20_000.0),
-        &path.key("density_kg_per_m3"),
-        "density_kg_per_m3 = 1000",
-        map,
-    )?;
     let damping_per_s = raw.damping_per_s.unwrap_or(DEFAULT_RIPPLE_DAMPING_PER_S);
     non_negative(
         damping_per_s,
@@ -1383,25 +1361,6 @@ fn positive(value: f64, at: &KeyPath, example: &str, map: &SourceMap<'_>) -> Res
         Err(map.error(
             at,
             format!("must be positive (got {value})"),
-            format!("set e.g. {example}"),
-        ))
-    }
-}
-
-/// `value` in `[low, high]` (and finite).
-fn within(
-    value: f64,
-    (low, high): (f64, f64),
-    at: &KeyPath,
-    example: &str,
-    map: &SourceMap<'_>,
-) -> Result<()> {
-    if (low..=high).contains(&value) {
-        Ok(())
-    } else {
-        Err(map.error(
-            at,
-            format!("must be between {low} and {high} (got {value})"),
             format!("set e.g. {example}"),
         ))
     }
