@@ -506,3 +506,41 @@ fn raytrace_renders_tiny_into_an_exr_with_every_layer() {
         }
     }
 }
+
+/// Every hard scene in `scenes/hard/` (issue 13 point 2) loads and renders, small, its last frame
+/// (so a wading character's ripples are stepped through the whole shot); each file says in its
+/// first lines what fails there.
+#[test]
+fn every_hard_scene_renders() {
+    let scenes = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/hard");
+    let mut rendered = Vec::new();
+    for entry in std::fs::read_dir(&scenes).unwrap().flatten() {
+        let scene = entry.path();
+        if scene.extension().is_none_or(|e| e != "toml") {
+            continue;
+        }
+        let text = std::fs::read_to_string(&scene).unwrap();
+        assert!(
+            text.starts_with("# HARD: ") && text.contains("What fails here:"),
+            "{} must say in its first lines what fails there",
+            scene.display()
+        );
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("out");
+        let output = render_small(&scene, &out, &["--frames", "48"], dir.path());
+        assert!(
+            output.status.success(),
+            "{} fails: {}",
+            scene.display(),
+            String::from_utf8_lossy(&output.stderr)
+        );
+        let name = scene.file_stem().unwrap().to_string_lossy().to_string();
+        assert!(out.join(format!("{name}.0048.exr")).is_file(), "{name}");
+        rendered.push(name);
+    }
+    rendered.sort();
+    assert_eq!(
+        rendered,
+        ["fast_camera", "grazing_eye", "steep_waves", "wading_wake"]
+    );
+}
