@@ -114,7 +114,9 @@ enum Command {
     },
     /// Measure speed: refraction search throughput and speed-up over brute force, per-stage
     /// frame times of a scene (default scenes/pool.toml) at 1280x720, and the ray-traced
-    /// reference's refracted rays per second and seconds per frame on the same scene and size.
+    /// reference's refracted rays per second and seconds per frame on the same scene and size,
+    /// and the refraction stage of a wake (default scenes/hard/wading_wake.toml frames 40-48)
+    /// beside the same frames with ripples off.
     Bench {
         /// Print the figures as one JSON object.
         #[arg(long)]
@@ -131,6 +133,13 @@ enum Command {
         /// Frames rendered for the frame-time figures (after one warm-up frame).
         #[arg(long, default_value_t = 8)]
         frames: u32,
+        /// Scene with a character's wake whose refraction stage is measured beside a calm copy
+        /// of it (the same scene with ripples off: same membrane, characters and camera).
+        #[arg(long, default_value = "scenes/hard/wading_wake.toml")]
+        wake_scene: PathBuf,
+        /// Frames of the wake scene measured, "A-B" (after a warm-up frame before A).
+        #[arg(long, default_value = "40-48")]
+        wake_frames: String,
     },
     /// Compare two EXR frames, or two directories of frames matched by file name: FLIP on the
     /// tone-mapped beauty (mean and 99th percentile), Z and P within tolerances, flag counts exactly.
@@ -390,7 +399,16 @@ fn run(cli: Cli) -> u8 {
             characters_scene,
             skinning_model,
             frames,
-        } => bench(json, &scene, &characters_scene, &skinning_model, frames),
+            wake_scene,
+            wake_frames,
+        } => bench(
+            json,
+            &scene,
+            &characters_scene,
+            &skinning_model,
+            frames,
+            (&wake_scene, &wake_frames),
+        ),
     };
     match result {
         Ok(()) => 0,
@@ -714,9 +732,16 @@ fn bench(
     characters_scene_path: &Path,
     skinning_model: &Path,
     frames: u32,
+    (wake_scene_path, wake_frames): (&Path, &str),
 ) -> Result<(), SnellError> {
-    let figures =
-        snell::frame::bench::run(scene_path, characters_scene_path, skinning_model, frames)?;
+    let figures = snell::frame::bench::run(
+        scene_path,
+        characters_scene_path,
+        skinning_model,
+        frames,
+        wake_scene_path,
+        wake_frames,
+    )?;
     let scrub = snell::preview::bench::scrub_latency(scene_path, SCRUB_FRAMES)?;
     if json {
         let mut value = serde_json::to_value(&figures).expect("figures serialise");

@@ -18,6 +18,135 @@ pub struct BenchFigures {
     pub characters: CharacterFigures,
     pub reference: ReferenceFigures,
     pub exact: ExactFigures,
+    pub wake: WakeFigures,
+}
+
+/// The refraction stage on frames with a character's wake beside a calm copy of the same scene
+/// (ripples off; the same membrane grid, characters, objects and camera), at 1280x720, with the
+/// equal-t and exact methods. Wake and calm frames alternate, frame by frame, so a busy machine
+/// slows both alike; each ratio is the median of the per-frame ratios.
+#[derive(Debug, Serialize)]
+pub struct WakeFigures {
+    pub scene: String,
+    pub size: [u32; 2],
+    /// The measured frames (inclusive), after a warm-up frame before the first.
+    pub frames: [u32; 2],
+    /// Median refraction-stage milliseconds per frame.
+    pub equal_t_wake_ms: f64,
+    pub equal_t_calm_ms: f64,
+    /// Median over the frames of wake ms / calm ms (target: at most 3).
+    pub equal_t_ratio: f64,
+    pub exact_wake_ms: f64,
+    pub exact_calm_ms: f64,
+    /// Median over the frames of wake ms / calm ms (target: at most 5, and the wake under 150 ms).
+    pub exact_ratio: f64,
+    /// Exact method on the wake frames, summed over the measured frames: vertices whose Newton
+    /// solve failed (drawn at the linear point), of the under-water vertices.
+    pub exact_newton_fallbacks: u64,
+    pub under_water_vertices: u64,
+    /// Exact method, median per frame: vertices with more than one image, wake and calm.
+    pub exact_convergence_vertices_wake: f64,
+    pub exact_convergence_vertices_calm: f64,
+}
+
+impl WakeFigures {
+    fn to_text(&self) -> String {
+        format!(
+            "refraction stage of {} frames {}-{} at {}x{}, wake vs calm copy (ripples off), medians:\n\
+             \x20 equal-t {:.2} vs {:.2} ms ({:.2}x; target at most 3x)\n\
+             \x20 exact   {:.2} vs {:.2} ms ({:.2}x; target at most 5x and under 150 ms)\n\
+             \x20 exact on the wake: {} Newton fallbacks of {} under-water vertices ({:.3} %); \
+             {:.0} vs {:.0} convergence vertices per frame\n",
+            self.scene,
+            self.frames[0],
+            self.frames[1],
+            self.size[0],
+            self.size[1],
+            self.equal_t_wake_ms,
+            self.equal_t_calm_ms,
+            self.equal_t_ratio,
+            self.exact_wake_ms,
+            self.exact_calm_ms,
+            self.exact_ratio,
+            self.exact_newton_fallbacks,
+            self.under_water_vertices,
+            100.0 * self.exact_newton_fallbacks as f64 / self.under_water_vertices.max(1) as f64,
+            self.exact_convergence_vertices_wake,
+            self.exact_convergence_vertices_calm,
+        )
+    }
+}
+
+/// [`WakeFigures`] of `frames` of `scene_path` (a scene whose characters make ripples).
+pub fn wake_times(scene_path: &Path, frames: &str) -> Result<WakeFigures, SnellError> {
+    let (width, height) = (1280, 720);
+    let scene = crate::scene::Scene::load(scene_path)?;
+    if !scene.water.ripples.enabled {
+        return Err(SnellError::Argument(format!(
+            "--wake-scene {}: the scene has no ripples (no character, or ripples disabled); \
+             give a scene whose characters make a wake, e.g. scenes/hard/wading_wake.toml",
+            scene_path.display()
+        )));
+    }
+    let mut calm_scene = scene.clone();
+    calm_scene.water.ripples.enabled = false;
+    let mut wake = RenderJob::from_scene(scene)?;
+    let mut calm = RenderJob::from_scene(calm_scene)?;
+    let range = super::FrameRange::parse(frames, wake.timeline())?;
+    let warm_up = range
+        .first
+        .saturating_sub(1)
+        .max(wake.timeline().first_frame);
+    // Per method: (wake ms, calm ms, ratio) per frame; exact: fallbacks, under water, convergence.
+    let mut figures = Vec::new();
+    let (mut fallbacks, mut under_water) = (0, 0);
+    let (mut converging_wake, mut converging_calm) = (Vec::new(), Vec::new());
+    for method in [super::Method::EqualT, super::Method::Exact] {
+        wake.method = method;
+        calm.method = method;
+        let (mut wake_ms, mut calm_ms, mut ratios) = (Vec::new(), Vec::new(), Vec::new());
+        let mut previous_wake = Some(wake.refract(warm_up, width, height, None)?.tracking);
+        let mut previous_calm = Some(calm.refract(warm_up, width, height, None)?.tracking);
+        for frame in range.frames() {
+            let w = wake.refract(frame, width, height, previous_wake.as_ref())?;
+            let c = calm.refract(frame, width, height, previous_calm.as_ref())?;
+            let (w_ms, c_ms) = (
+                w.stage_secs["refraction"] * 1e3,
+                c.stage_secs["refraction"] * 1e3,
+            );
+            wake_ms.push(w_ms);
+            calm_ms.push(c_ms);
+            ratios.push(w_ms / c_ms);
+            if method == super::Method::Exact {
+                fallbacks += w.counts.vertices.newton_fallback;
+                under_water += w.counts.vertices.under_water;
+                converging_wake.push(w.counts.vertices.convergence as f64);
+                converging_calm.push(c.counts.vertices.convergence as f64);
+            }
+            previous_wake = Some(w.tracking);
+            previous_calm = Some(c.tracking);
+        }
+        figures.push((
+            median(&mut wake_ms),
+            median(&mut calm_ms),
+            median(&mut ratios),
+        ));
+    }
+    Ok(WakeFigures {
+        scene: wake.scene_name().to_string(),
+        size: [width, height],
+        frames: [range.first, range.last],
+        equal_t_wake_ms: figures[0].0,
+        equal_t_calm_ms: figures[0].1,
+        equal_t_ratio: figures[0].2,
+        exact_wake_ms: figures[1].0,
+        exact_calm_ms: figures[1].1,
+        exact_ratio: figures[1].2,
+        exact_newton_fallbacks: fallbacks,
+        under_water_vertices: under_water,
+        exact_convergence_vertices_wake: median(&mut converging_wake),
+        exact_convergence_vertices_calm: median(&mut converging_calm),
+    })
 }
 
 /// The ray-traced reference (`--method raytrace`, CPU) on the frame-time scene at 1280x720.
@@ -215,7 +344,7 @@ impl BenchFigures {
              ripples: {:.0} frames/s on a 256x256 grid\n\
              {}\
              skinning + ripples: {:.1} % of the {} frame\n\
-             {}{}",
+             {}{}{}",
             self.refraction.vertices_per_sec / 1e6,
             self.refraction.scenario,
             self.refraction.speedup_vs_brute_force,
@@ -227,6 +356,7 @@ impl BenchFigures {
             characters.frame.scene,
             self.reference.to_text(),
             self.exact.to_text(),
+            self.wake.to_text(),
         )
     }
 }
@@ -279,6 +409,8 @@ pub fn run(
     characters_scene_path: &Path,
     fox_path: &Path,
     frames: u32,
+    wake_scene_path: &Path,
+    wake_frames: &str,
 ) -> Result<BenchFigures, SnellError> {
     let search = crate::refraction::bench::bench_search();
     let refraction = RefractionFigures {
@@ -306,6 +438,7 @@ pub fn run(
     let (skinning, ripple_steps) = character_throughput(fox_path)?;
     let reference = reference_figures(scene_path, frames)?;
     let exact = exact_times(scene_path, frames)?;
+    let wake = wake_times(wake_scene_path, wake_frames)?;
     Ok(BenchFigures {
         refraction,
         frame,
@@ -317,6 +450,7 @@ pub fn run(
             skinning_and_ripples_share: share,
         },
         exact,
+        wake,
     })
 }
 
@@ -434,6 +568,19 @@ fn process_cpu_secs() -> f64 {
 #[cfg(test)]
 mod tuning {
     use super::*;
+
+    /// Tuning aid: `snell bench`'s wake pair alone (no GPU), on `SNELL_WAKE_SCENE` (default
+    /// scenes/hard/wading_wake.toml) frames `SNELL_WAKE_FRAMES` (default 40-48):
+    /// `cargo test --release --lib frame::bench::tuning::wake_pair -- --ignored --nocapture`.
+    #[test]
+    #[ignore = "tuning aid"]
+    fn wake_pair() {
+        let scene = std::env::var("SNELL_WAKE_SCENE")
+            .unwrap_or_else(|_| "scenes/hard/wading_wake.toml".to_string());
+        let frames = std::env::var("SNELL_WAKE_FRAMES").unwrap_or_else(|_| "40-48".to_string());
+        let figures = wake_times(Path::new(&scene), &frames).unwrap();
+        print!("{}", figures.to_text());
+    }
 
     /// Tuning aid: the refraction stage of `pool.toml` frames alone (no GPU), fastest of 3 passes
     /// over frames 1-24: `cargo test --release --lib frame::bench::tuning -- --ignored --nocapture`.
