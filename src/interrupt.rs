@@ -63,6 +63,38 @@ fn stop_at_once(signal: i32) -> ! {
     std::process::exit(exit_code_for(signal).into())
 }
 
+/// For a command that stops at the first signal (`snell preview`): handles SIGINT and SIGTERM
+/// from now on (call before announcing that the command runs). Handling them replaces a
+/// disposition of "ignore" inherited from the parent (a shell starting a job in the background
+/// sets it for SIGINT), so `kill -INT` always stops the command.
+pub fn catch_stop_signals() -> std::io::Result<Signals> {
+    Signals::new([SIGINT, SIGTERM])
+}
+
+/// Blocks until a signal of [`catch_stop_signals`] arrives, then removes this process's temporary
+/// files and exits with 128 + the signal, without waiting for work in flight (a frame still
+/// rendering) and without running exit handlers.
+pub fn exit_at_first_signal(mut signals: Signals, what: &str) -> ! {
+    let signal = signals.forever().next().unwrap_or(SIGINT);
+    let removed = crate::output::temporary::remove_all_and_refuse_new();
+    errln!(
+        "\nsnell: {} received: {what} stopped{}",
+        signal_name(signal),
+        if removed.is_empty() {
+            String::new()
+        } else {
+            format!(" (removed {} temporary file(s))", removed.len())
+        }
+    );
+    use std::io::Write;
+    let _ = std::io::stdout().flush();
+    let _ = std::io::stderr().flush();
+    // _exit, not exit: exit runs the C libraries' exit handlers (Mesa's, LLVM's) while the render
+    // worker may still be inside them, which crashed the process (SIGSEGV) instead of ending it.
+    // SAFETY: _exit ends the process at once; nothing runs after it.
+    unsafe { libc::_exit(exit_code_for(signal).into()) }
+}
+
 fn exit_code_for(signal: i32) -> u8 {
     u8::try_from(128 + signal).unwrap_or(1)
 }

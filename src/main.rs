@@ -582,6 +582,8 @@ fn preview(
     options.width = width;
     options.height = height;
     options.out_dir = out;
+    let signals = snell::interrupt::catch_stop_signals()
+        .map_err(|error| SnellError::Argument(format!("cannot handle Ctrl-C: {error}")))?;
     let server = snell::preview::PreviewServer::start(options)?;
     // The first line on stdout is the address (tests and scripts read it); flushed at once.
     outln!(
@@ -595,8 +597,8 @@ fn preview(
         "open {} in a browser; Ctrl-C stops the preview",
         server.url()
     );
-    server.wait();
-    Ok(())
+    // Serves until SIGINT or SIGTERM; the process exits from there.
+    snell::interrupt::exit_at_first_signal(signals, "the preview")
 }
 
 /// The `snell render ... --resume` command line that finishes this render, quoted for a POSIX

@@ -1,7 +1,10 @@
 //! The preview's HTTP API, served in-process on a free port: frames are the frames `snell render`
 //! makes, bad requests get a clear 4xx, concurrent requests each get their own frame, and a scene
 //! edited on disk reloads (a broken edit is reported with file and line while the last good
-//! version stays served).
+//! version stays served). The server's own robustness: a render-worker panic fails its frame at
+//! once and the worker restarts, a watcher panic restarts the watcher, a flood of idle
+//! connections adds no threads, and `snell preview` stops at SIGINT even when its parent told it
+//! to ignore SIGINT.
 
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -10,7 +13,7 @@ use snell::frame::RenderJob;
 use snell::gpu::Renderer;
 use snell::output::tonemap::tonemap_srgb8;
 use snell::preview::client::{get, Response};
-use snell::preview::{PreviewOptions, PreviewServer};
+use snell::preview::{Faults, PreviewOptions, PreviewServer};
 
 const WIDTH: u32 = 160;
 const HEIGHT: u32 = 90;
@@ -22,12 +25,17 @@ fn scene(name: &str) -> PathBuf {
 }
 
 fn start(scene_path: &Path, checkpoints: &Path) -> PreviewServer {
+    start_with(scene_path, checkpoints, Faults::default())
+}
+
+fn start_with(scene_path: &Path, checkpoints: &Path, faults: Faults) -> PreviewServer {
     let mut options = PreviewOptions::new(scene_path);
     options.port = 0;
     options.width = WIDTH;
     options.height = HEIGHT;
     options.out_dir = Some(checkpoints.to_path_buf());
     options.watch_interval = Duration::from_millis(50);
+    options.faults = faults;
     PreviewServer::start(options).expect("the preview starts")
 }
 
@@ -79,6 +87,8 @@ fn frames_equal_the_renderers_and_bad_requests_are_4xx() {
 
     let state = fetch(&server, "/api/scene").json().unwrap();
     assert_eq!(state["scene"]["name"], "pool");
+    // The path relative to the working folder (cargo runs tests in the package's), never absolute.
+    assert_eq!(state["scene"]["path"], "scenes/pool.toml");
     assert_eq!(state["scene"]["first_frame"], 1);
     assert_eq!(state["scene"]["last_frame"], 48);
     assert_eq!(state["size"], serde_json::json!([WIDTH, HEIGHT]));
@@ -353,6 +363,9 @@ fn a_scene_that_never_loaded_is_reported_not_fatal() {
         state["problem"].as_str().unwrap().contains("broken.toml:2"),
         "{state}"
     );
+    // Outside the working folder only the file name is shown, in the problem too.
+    let folder = temp.path().display().to_string();
+    assert!(!state.to_string().contains(&folder), "{state}");
     assert!(error_of(&server, "/api/frame/1.png", 503).contains("did not load"));
     server.stop();
 }
@@ -362,4 +375,251 @@ fn save(path: &Path, contents: impl AsRef<[u8]>) {
     let temporary = path.with_extension("toml.saving");
     std::fs::write(&temporary, contents).unwrap();
     std::fs::rename(&temporary, path).unwrap();
+}
+
+#[test]
+fn a_render_worker_panic_fails_its_frame_at_once_and_the_worker_restarts() {
+    let temp = tempfile::tempdir().unwrap();
+    let faults = Faults {
+        worker_panic_frame: Some(30),
+        ..Faults::default()
+    };
+    let server = start_with(&scene("pool.toml"), temp.path(), faults);
+    // The renderer is up once a frame is served.
+    png(&fetch(&server, "/api/frame/1.png"));
+    let asked = Instant::now();
+    let message = error_of(&server, "/api/frame/30.png", 500);
+    let waited = asked.elapsed();
+    assert!(
+        waited < Duration::from_secs(1),
+        "the 500 came after {waited:?}"
+    );
+    assert!(
+        message.contains("panicked on frame 30") && message.contains("restarted"),
+        "{message}"
+    );
+    // Asked again, at once again (the failure is kept, the frame is not retried).
+    let asked = Instant::now();
+    error_of(&server, "/api/frame/30.png", 500);
+    assert!(asked.elapsed() < Duration::from_secs(1));
+    // The restarted worker renders other frames.
+    png(&fetch(&server, "/api/frame/40.png"));
+    let state = fetch(&server, "/api/scene").json().unwrap();
+    assert_eq!(state["threads"]["render_worker"]["restarts"], 1, "{state}");
+    assert!(state["threads"]["render_worker"]["dead"].is_null());
+    let shown = state["thread_problem"].as_str().unwrap();
+    assert!(shown.contains("render worker panicked"), "{shown}");
+    assert_eq!(fetch(&server, "/api/health").status, 200);
+    server.stop();
+}
+
+#[test]
+fn a_watcher_panic_restarts_it_and_repeated_ones_are_reported_with_a_5xx() {
+    let temp = tempfile::tempdir().unwrap();
+    let scene_path = temp.path().join("tiny.toml");
+    let original = std::fs::read_to_string(scene("tiny.toml")).unwrap();
+    save(&scene_path, &original);
+    let faults = Faults {
+        watcher_panics: 1,
+        ..Faults::default()
+    };
+    let server = start_with(&scene_path, &temp.path().join("out"), faults);
+    wait_until("the watcher's restart", || {
+        fetch(&server, "/api/scene").json().unwrap()["threads"]["file_watcher"]["restarts"] == 1
+    });
+    let generation = fetch(&server, "/api/scene").json().unwrap()["generation"]
+        .as_u64()
+        .unwrap();
+    // Live reload still works.
+    save(
+        &scene_path,
+        original.replacen("fov_deg", "fov_deg = 30.0\n# was", 1),
+    );
+    wait_until("the reload", || {
+        fetch(&server, "/api/scene").json().unwrap()["generation"].as_u64() == Some(generation + 1)
+    });
+    assert_eq!(fetch(&server, "/api/health").status, 200);
+    server.stop();
+
+    // A watcher that keeps panicking is given up: the API says so with a 503, and the page's
+    // state carries the reason.
+    let faults = Faults {
+        watcher_panics: 100,
+        ..Faults::default()
+    };
+    let server = start_with(&scene_path, &temp.path().join("out"), faults);
+    wait_until("the dead watcher", || {
+        fetch(&server, "/api/health").status == 503
+    });
+    let health = fetch(&server, "/api/health").json().unwrap();
+    assert!(
+        health["threads"]["file_watcher"]["dead"]
+            .as_str()
+            .unwrap()
+            .contains("3 times in a row"),
+        "{health}"
+    );
+    let state = fetch(&server, "/api/scene").json().unwrap();
+    assert!(
+        state["thread_problem"]
+            .as_str()
+            .unwrap()
+            .contains("edits of the scene are no longer seen"),
+        "{state}"
+    );
+    server.stop();
+}
+
+/// `snell preview` as a process, with SIGINT ignored as a shell does for a background job.
+struct Preview {
+    child: std::process::Child,
+    url: String,
+}
+
+impl Drop for Preview {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+impl Preview {
+    fn spawn(scene_path: &Path, size: &str, out: &Path) -> Preview {
+        use std::io::BufRead;
+        use std::os::unix::process::CommandExt;
+        let mut command = std::process::Command::new(env!("CARGO_BIN_EXE_snell"));
+        command
+            .arg("preview")
+            .arg(scene_path)
+            .args(["--port", "0", "--size", size, "--out"])
+            .arg(out)
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::null());
+        // SAFETY: signal(2) is async-signal-safe, as pre_exec requires.
+        unsafe {
+            command.pre_exec(|| {
+                libc::signal(libc::SIGINT, libc::SIG_IGN);
+                Ok(())
+            });
+        }
+        let mut child = command.spawn().expect("snell preview starts");
+        let stdout = child.stdout.take().unwrap();
+        let mut line = String::new();
+        std::io::BufReader::new(stdout)
+            .read_line(&mut line)
+            .unwrap();
+        let url = line
+            .trim()
+            .rsplit_once(" on ")
+            .map(|(_, url)| url.to_string())
+            .unwrap_or_else(|| panic!("unexpected first line {line:?}"));
+        Preview { child, url }
+    }
+
+    fn pid(&self) -> u32 {
+        self.child.id()
+    }
+
+    fn threads(&self) -> usize {
+        std::fs::read_dir(format!("/proc/{}/task", self.pid()))
+            .unwrap()
+            .count()
+    }
+
+    fn open_files(&self) -> usize {
+        std::fs::read_dir(format!("/proc/{}/fd", self.pid()))
+            .unwrap()
+            .count()
+    }
+}
+
+#[test]
+fn a_flood_of_idle_connections_adds_no_threads_and_requests_are_still_served() {
+    use std::io::Read;
+    let temp = tempfile::tempdir().unwrap();
+    let preview = Preview::spawn(&scene("tiny.toml"), "160x90", temp.path());
+    let url = preview.url.clone();
+    png(&get(&url, "/api/frame/2.png").unwrap());
+    wait_until("the strip", || {
+        get(&url, "/api/strip").unwrap().json().unwrap()["done"] == true
+    });
+    let (threads_before, files_before) = (preview.threads(), preview.open_files());
+    let authority = url.trim_start_matches("http://").trim_end_matches('/');
+    // 300 connections that send nothing, and 20 that send half a request head.
+    let mut idle: Vec<std::net::TcpStream> = (0..300)
+        .map(|_| std::net::TcpStream::connect(authority).unwrap())
+        .collect();
+    for stream in idle.iter_mut().take(20) {
+        use std::io::Write;
+        stream.write_all(b"GET /api/scene HTTP/1.1\r\nHo").unwrap();
+    }
+    std::thread::sleep(Duration::from_millis(500));
+    let (threads_during, files_during) = (preview.threads(), preview.open_files());
+    let asked = Instant::now();
+    let scene = get(&url, "/api/scene").unwrap();
+    assert_eq!(scene.status, 200);
+    png(&get(&url, "/api/frame/3.png").unwrap());
+    let served_in = asked.elapsed();
+    eprintln!(
+        "threads {threads_before} -> {threads_during}, open files {files_before} -> {files_during}, \
+         2 requests served in {served_in:?} beside 300 idle connections"
+    );
+    assert!(
+        threads_during <= threads_before,
+        "300 idle connections made threads: {threads_before} -> {threads_during}"
+    );
+    // At most 128 connections stay open; the ones idle longest were closed.
+    assert!(
+        files_during <= files_before + 128,
+        "open files {files_before} -> {files_during}"
+    );
+    let mut closed = 0;
+    for stream in &mut idle {
+        stream
+            .set_read_timeout(Some(Duration::from_millis(5)))
+            .unwrap();
+        match stream.read(&mut [0u8; 16]) {
+            Ok(0) => closed += 1,
+            Err(e) if e.kind() == std::io::ErrorKind::ConnectionReset => closed += 1,
+            _ => {}
+        }
+    }
+    assert!(
+        closed >= 300 - 128,
+        "{closed} of 300 idle connections closed"
+    );
+}
+
+#[test]
+fn sigint_stops_the_preview_even_when_the_parent_ignores_it() {
+    let temp = tempfile::tempdir().unwrap();
+    for busy in [false, true] {
+        let mut preview = Preview::spawn(&scene("pool.toml"), "640x360", temp.path());
+        if busy {
+            // A frame rendering when the signal comes.
+            let url = preview.url.clone();
+            std::thread::spawn(move || get(&url, "/api/frame/30.png"));
+            std::thread::sleep(Duration::from_millis(100));
+        }
+        let sent = Instant::now();
+        // SAFETY: kill(2) on our own child's pid.
+        assert_eq!(unsafe { libc::kill(preview.pid() as i32, libc::SIGINT) }, 0);
+        let status = loop {
+            if let Some(status) = preview.child.try_wait().unwrap() {
+                break status;
+            }
+            assert!(
+                sent.elapsed() < Duration::from_secs(2),
+                "snell preview (busy: {busy}) still runs 2 s after SIGINT"
+            );
+            std::thread::sleep(Duration::from_millis(10));
+        };
+        use std::os::unix::process::ExitStatusExt;
+        assert_eq!(
+            status.code(),
+            Some(130),
+            "busy: {busy}; killed by signal {:?}",
+            status.signal()
+        );
+    }
 }

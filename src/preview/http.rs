@@ -9,7 +9,7 @@ use std::time::{Duration, Instant};
 use image::RgbaImage;
 use serde_json::json;
 
-use super::{worker, CachedFrame, FrameKey, ImageKey, Shared, State};
+use super::{server, worker, CachedFrame, FrameKey, ImageKey, Shared, State};
 use crate::draw::flag_bits;
 use crate::frame::Method;
 
@@ -47,47 +47,38 @@ impl Reply {
     }
 }
 
-pub(super) fn serve(server: &tiny_http::Server, shared: &Shared) {
-    loop {
-        let request = match server.recv() {
-            Ok(request) => request,
-            Err(_) if shared.lock().stopping => return,
-            Err(_) => continue, // a failed accept: keep serving
-        };
-        let started = Instant::now();
-        let host = request
-            .headers()
-            .iter()
-            .find(|h| h.field.equiv("Host"))
-            .map(|h| h.value.as_str().to_owned());
-        let reply = if !host.as_deref().is_some_and(is_loopback_host) {
-            // DNS rebinding: a page of evil.example resolving to 127.0.0.1 would read frames and
-            // the scene. Only loopback names are served (any port, so SSH tunnels keep working).
-            Reply::error(
-                421,
-                format!(
-                    "the preview answers only requests for 127.0.0.1, localhost or [::1] (Host: {})",
-                    host.as_deref().unwrap_or("missing")
-                ),
-            )
-        } else if *request.method() == tiny_http::Method::Get {
-            route(shared, request.url())
-        } else {
-            Reply::error(405, "the preview only answers GET requests")
-        };
-        let mut response = tiny_http::Response::from_data(reply.body)
-            .with_status_code(reply.status)
-            .with_header(header("Content-Type", reply.content_type))
-            .with_header(header("Cache-Control", "no-store"))
-            .with_header(header(
-                "X-Snell-Millis",
-                &format!("{:.2}", started.elapsed().as_secs_f64() * 1e3),
-            ));
-        for (name, value) in reply.headers {
-            response.add_header(header(name, &value));
-        }
-        // The client may have gone (a scrubbing page drops requests it no longer needs).
-        let _ = request.respond(response);
+/// Answers one request: refuses other hosts and methods, routes the rest.
+pub(super) fn handle(shared: &Shared, request: &server::Request) -> server::Response {
+    let started = Instant::now();
+    let host = request.host.as_deref();
+    let reply = if !host.is_some_and(is_loopback_host) {
+        // DNS rebinding: a page of evil.example resolving to 127.0.0.1 would read frames and
+        // the scene. Only loopback names are served (any port, so SSH tunnels keep working).
+        Reply::error(
+            421,
+            format!(
+                "the preview answers only requests for 127.0.0.1, localhost or [::1] (Host: {})",
+                host.unwrap_or("missing")
+            ),
+        )
+    } else if request.method == "GET" {
+        route(shared, &request.target)
+    } else {
+        Reply::error(405, "the preview only answers GET requests")
+    };
+    let mut headers = vec![
+        ("Content-Type", reply.content_type.to_string()),
+        ("Cache-Control", "no-store".to_string()),
+        (
+            "X-Snell-Millis",
+            format!("{:.2}", started.elapsed().as_secs_f64() * 1e3),
+        ),
+    ];
+    headers.extend(reply.headers);
+    server::Response {
+        status: reply.status,
+        headers,
+        body: reply.body,
     }
 }
 
@@ -124,10 +115,6 @@ fn port_ok(port: &str) -> bool {
             .is_some_and(|p| !p.is_empty() && p.parse::<u16>().is_ok())
 }
 
-fn header(name: &str, value: &str) -> tiny_http::Header {
-    tiny_http::Header::from_bytes(name.as_bytes(), value.as_bytes()).expect("ASCII header")
-}
-
 fn route(shared: &Shared, url: &str) -> Reply {
     let (path, query) = url.split_once('?').unwrap_or((url, ""));
     let params = Query::parse(query);
@@ -139,6 +126,7 @@ fn route(shared: &Shared, url: &str) -> Reply {
             headers: Vec::new(),
         },
         "/api/scene" => scene(shared),
+        "/api/health" => health(shared),
         "/api/strip" => match params.method() {
             Ok(method) => strip(shared, method),
             Err(reply) => reply,
@@ -147,7 +135,7 @@ fn route(shared: &Shared, url: &str) -> Reply {
             Some(rest) => frame(shared, rest, &params),
             None => Reply::error(
                 404,
-                format!("no such page: {path}; the preview serves /, /api/scene, /api/strip and /api/frame/<N>.png"),
+                format!("no such page: {path}; the preview serves /, /api/scene, /api/health, /api/strip and /api/frame/<N>.png"),
             ),
         },
     }
@@ -179,6 +167,45 @@ fn scene(shared: &Shared) -> Reply {
                 || !state.demand.is_empty()
                 || !state.prefetch.is_empty(),
             "strips_done": state.strips.values().all(|s| s.counts.iter().all(Option::is_some)),
+            "threads": threads(&state),
+            "thread_problem": thread_problem(&state),
+        }),
+    )
+}
+
+fn threads(state: &State) -> serde_json::Value {
+    json!({ "render_worker": state.worker, "file_watcher": state.watcher })
+}
+
+/// What went wrong with the render worker or the file watcher, for the page (None: nothing).
+fn thread_problem(state: &State) -> Option<String> {
+    let lines: Vec<String> = [
+        state.worker.summary("render worker"),
+        state.watcher.summary("file watcher").map(|text| {
+            if state.watcher.dead.is_some() {
+                format!("{text}: edits of the scene are no longer seen; restart snell preview")
+            } else {
+                text
+            }
+        }),
+    ]
+    .into_iter()
+    .flatten()
+    .collect();
+    (!lines.is_empty()).then(|| lines.join("\n"))
+}
+
+/// `/api/health`: 200 while the render worker and the file watcher run, 503 when one was given
+/// up after repeated panics.
+fn health(shared: &Shared) -> Reply {
+    let state = shared.lock();
+    let dead = state.worker.dead.is_some() || state.watcher.dead.is_some();
+    Reply::json(
+        if dead { 503 } else { 200 },
+        json!({
+            "ok": !dead,
+            "threads": threads(&state),
+            "problem": thread_problem(&state),
         }),
     )
 }
@@ -370,6 +397,12 @@ fn wait_for_frame(shared: &Shared, key: FrameKey) -> Result<(Arc<CachedFrame>, b
         }
         if let Some(problem) = &state.renderer_problem {
             return Err(Reply::error(500, format!("no GPU renderer: {problem}")));
+        }
+        if let Some(dead) = &state.worker.dead {
+            return Err(Reply::error(500, dead.clone()));
+        }
+        if state.stopping {
+            return Err(Reply::error(503, "the preview is stopping"));
         }
         was_cached = false;
         if state.demand.front() != Some(&key) {

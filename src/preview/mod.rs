@@ -10,6 +10,15 @@
 //!   with the named flag masks (`convergence,boundary,popping,extrapolated`) overlaid.
 //! - `GET /api/frame/<N>.json?method=` — the frame's flag counts and seconds per stage.
 //! - `GET /api/strip?method=` — flag counts of every frame (null until computed).
+//! - `GET /api/health` — the render worker's and the file watcher's state: 200 while both run,
+//!   503 when one was given up after repeated panics (`/api/scene` carries the same, and the page
+//!   shows it).
+//!
+//! Only requests whose `Host` is a loopback name are answered (else 421: DNS rebinding), and the
+//! scene path shown is relative to the working folder. Connections are served by a fixed pool of
+//! threads with a connection cap and timeouts (see `server.rs`). A panic in the render worker
+//! fails the frame it was on at once (500) and restarts the worker; a panic in the watcher
+//! restarts it; both are shown on the page.
 //!
 //! Frames are rendered on demand by one worker thread that owns the GPU renderer, cached (linear
 //! frames and encoded images, both bounded), and neighbours of the last requested frame are
@@ -24,6 +33,7 @@ pub mod client;
 mod http;
 mod lru;
 mod page;
+mod server;
 mod worker;
 
 use std::collections::{HashMap, VecDeque};
@@ -53,6 +63,19 @@ pub struct PreviewOptions {
     pub out_dir: Option<PathBuf>,
     /// How often the scene file and its assets are checked for changes.
     pub watch_interval: Duration,
+    /// Failures made on purpose, for the tests of the preview's own recovery (the CLI never sets
+    /// them; no request or environment variable can).
+    pub faults: Faults,
+}
+
+/// Panics injected into the preview's threads, so tests can check that a dead render worker or
+/// file watcher is restarted and reported. Off by default; only library callers can set them.
+#[derive(Clone, Debug, Default)]
+pub struct Faults {
+    /// The render worker panics whenever it is asked to render this frame.
+    pub worker_panic_frame: Option<u32>,
+    /// The file watcher panics at each of its first this-many polls.
+    pub watcher_panics: u32,
 }
 
 impl PreviewOptions {
@@ -64,6 +87,7 @@ impl PreviewOptions {
             height: 360,
             out_dir: None,
             watch_interval: Duration::from_millis(250),
+            faults: Faults::default(),
         }
     }
 }
@@ -133,7 +157,60 @@ struct State {
     renderer_problem: Option<String>,
     /// The worker is rendering or refracting (for the bench: it waits for an idle worker).
     worker_busy: bool,
+    /// The frame the worker renders or counts now (a panic there fails it).
+    in_flight: Option<FrameKey>,
+    worker: ThreadHealth,
+    watcher: ThreadHealth,
     stopping: bool,
+}
+
+/// Panics after which a thread is given up (a panic between them that did useful work resets
+/// the count): the page and the API then report it dead, and every frame request gets a 5xx.
+const RESTARTS_IN_A_ROW: u32 = 3;
+
+/// How a supervised thread (the render worker, the file watcher) is doing.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+struct ThreadHealth {
+    /// Times it was restarted after a panic.
+    restarts: u32,
+    /// Panics since it last did useful work (a frame rendered, a poll of the files).
+    #[serde(skip)]
+    panics_in_a_row: u32,
+    /// The last panic: what and where.
+    last_panic: Option<String>,
+    /// Set when it was given up: why.
+    dead: Option<String>,
+}
+
+impl ThreadHealth {
+    /// Records a panic; returns whether the thread is to be restarted (else it is now dead).
+    fn record_panic(&mut self, name: &str, message: &str) -> bool {
+        self.panics_in_a_row += 1;
+        self.last_panic = Some(message.to_string());
+        if self.panics_in_a_row >= RESTARTS_IN_A_ROW {
+            self.dead = Some(format!(
+                "the {name} panicked {} times in a row and was stopped; last: {message}",
+                self.panics_in_a_row
+            ));
+            false
+        } else {
+            self.restarts += 1;
+            true
+        }
+    }
+
+    /// What the page shows about it (None: nothing went wrong).
+    fn summary(&self, name: &str) -> Option<String> {
+        if let Some(dead) = &self.dead {
+            return Some(dead.clone());
+        }
+        self.last_panic.as_ref().map(|panic| {
+            format!(
+                "the {name} panicked and was restarted ({} time(s)); last: {panic}",
+                self.restarts
+            )
+        })
+    }
 }
 
 impl State {
@@ -177,6 +254,9 @@ struct Shared {
     width: u32,
     height: u32,
     out_dir: Option<PathBuf>,
+    faults: Faults,
+    /// Watcher panics still to inject.
+    watcher_panics_left: std::sync::atomic::AtomicU32,
 }
 
 impl Shared {
@@ -191,28 +271,24 @@ impl Shared {
 /// A running preview server.
 pub struct PreviewServer {
     shared: Arc<Shared>,
-    server: Arc<tiny_http::Server>,
+    http: server::HttpServer,
     url: String,
     threads: Vec<JoinHandle<()>>,
-    http_threads: usize,
 }
-
-/// Requests served at once; more wait in the listener's queue.
-const HTTP_THREADS: usize = 4;
 
 impl PreviewServer {
     /// Binds 127.0.0.1:`port`, loads the scene (a broken scene is shown on the page, not an
     /// error here) and starts serving. Fails only when the port cannot be bound.
     pub fn start(options: PreviewOptions) -> Result<PreviewServer, SnellError> {
-        let server = tiny_http::Server::http(("127.0.0.1", options.port)).map_err(|error| {
-            SnellError::Argument(format!(
+        let listener =
+            std::net::TcpListener::bind(("127.0.0.1", options.port)).map_err(|error| {
+                SnellError::Argument(format!(
                 "cannot listen on 127.0.0.1:{}: {error}; choose another port with --port (0 picks a free one)",
                 options.port
             ))
-        })?;
-        let port = server
-            .server_addr()
-            .to_ip()
+            })?;
+        let port = listener
+            .local_addr()
             .map(|address| address.port())
             .unwrap_or(options.port);
         let url = format!("http://127.0.0.1:{port}/");
@@ -235,33 +311,27 @@ impl PreviewServer {
                 strips: HashMap::new(),
                 renderer_problem: None,
                 worker_busy: false,
+                in_flight: None,
+                worker: ThreadHealth::default(),
+                watcher: ThreadHealth::default(),
                 stopping: false,
             }),
             wake: Condvar::new(),
             width: options.width,
             height: options.height,
             out_dir: options.out_dir.clone(),
+            watcher_panics_left: options.faults.watcher_panics.into(),
+            faults: options.faults.clone(),
         });
         let mut watcher = Watcher::new(options.scene_path.clone());
         watcher.reload(&shared);
 
-        let server = Arc::new(server);
         let mut threads = Vec::new();
-        for index in 0..HTTP_THREADS {
-            let server = Arc::clone(&server);
-            let shared = Arc::clone(&shared);
-            threads.push(
-                std::thread::Builder::new()
-                    .name(format!("preview-http-{index}"))
-                    .spawn(move || http::serve(&server, &shared))
-                    .expect("spawning a thread"),
-            );
-        }
         let worker_shared = Arc::clone(&shared);
         threads.push(
             std::thread::Builder::new()
                 .name("preview-render".into())
-                .spawn(move || worker::run(&worker_shared))
+                .spawn(move || worker::supervise(&worker_shared))
                 .expect("spawning a thread"),
         );
         let watch_shared = Arc::clone(&shared);
@@ -269,15 +339,23 @@ impl PreviewServer {
         threads.push(
             std::thread::Builder::new()
                 .name("preview-watch".into())
-                .spawn(move || watcher.run(&watch_shared, interval))
+                .spawn(move || watcher.supervise(&watch_shared, interval))
                 .expect("spawning a thread"),
         );
+        let handler_shared = Arc::clone(&shared);
+        let http = server::HttpServer::start(
+            listener,
+            server::Limits::default(),
+            Arc::new(move |request: &server::Request| http::handle(&handler_shared, request)),
+        )
+        .map_err(|error| {
+            SnellError::Argument(format!("cannot start the preview server: {error}"))
+        })?;
         Ok(PreviewServer {
             shared,
-            server,
+            http,
             url,
             threads,
-            http_threads: HTTP_THREADS,
         })
     }
 
@@ -286,20 +364,17 @@ impl PreviewServer {
         &self.url
     }
 
-    /// Serves until the process ends.
-    pub fn wait(self) {
-        for thread in self.threads {
-            let _ = thread.join();
-        }
+    /// Threads the server runs: request threads, the connection poller, the render worker and
+    /// the file watcher (a fixed number, whatever the clients do).
+    pub fn thread_count(&self) -> usize {
+        self.http.thread_count() + self.threads.len()
     }
 
-    /// Stops every thread and closes the socket.
+    /// Stops every thread and closes the socket (waits for the frame the worker is on).
     pub fn stop(self) {
         self.shared.lock().stopping = true;
         self.shared.wake.notify_all();
-        for _ in 0..self.http_threads {
-            self.server.unblock();
-        }
+        self.http.stop();
         for thread in self.threads {
             let _ = thread.join();
         }
@@ -321,6 +396,8 @@ struct Watcher {
     pending: Option<Fingerprint>,
     /// The files the last good scene referenced (besides the scene file).
     assets: Vec<PathBuf>,
+    /// The scene path as the page shows it ([`shown_path`]).
+    shown: String,
 }
 
 /// The scene file's content hash and the stamps of its assets.
@@ -338,14 +415,41 @@ fn stamp(path: &Path) -> FileStamp {
 impl Watcher {
     fn new(scene_path: PathBuf) -> Self {
         Watcher {
-            scene_path,
             loaded: Fingerprint {
                 scene: None,
                 assets: Vec::new(),
             },
             pending: None,
             assets: Vec::new(),
+            shown: shown_path(&scene_path),
+            scene_path,
         }
+    }
+
+    /// `text` (a load error, a notice) with the scene's folders as the page shows them: the scene
+    /// path as given and the scene folder's absolute path are replaced by the shown ones.
+    fn hide_folders(&self, text: &str) -> String {
+        let mut text = text.replace(&self.scene_path.display().to_string(), &self.shown);
+        let shown_dir = Path::new(&self.shown)
+            .parent()
+            .filter(|p| !p.as_os_str().is_empty())
+            .map_or_else(String::new, |p| format!("{}/", p.display()));
+        let absolute = std::env::current_dir()
+            .map(|cwd| cwd.join(&self.scene_path))
+            .unwrap_or_else(|_| self.scene_path.clone());
+        let mut folders: Vec<PathBuf> = [
+            absolute.clone(),
+            std::fs::canonicalize(&absolute).unwrap_or_default(),
+        ]
+        .iter()
+        .filter_map(|p| p.parent().map(Path::to_path_buf))
+        .filter(|p| p.is_absolute() && p.parent().is_some())
+        .collect();
+        folders.sort_by_key(|p| std::cmp::Reverse(p.as_os_str().len()));
+        for folder in folders {
+            text = text.replace(&format!("{}/", folder.display()), &shown_dir);
+        }
+        text
     }
 
     fn fingerprint(&self) -> Fingerprint {
@@ -357,11 +461,41 @@ impl Watcher {
         }
     }
 
-    fn run(mut self, shared: &Shared, interval: Duration) {
+    /// Runs the watcher; a panic restarts it (and is shown), [`RESTARTS_IN_A_ROW`] in a row
+    /// stop it (shown as dead: live reload is off).
+    fn supervise(mut self, shared: &Shared, interval: Duration) {
+        loop {
+            match crate::panics::catch(|| self.run(shared, interval)) {
+                Ok(()) => return,
+                Err(message) => {
+                    let mut state = shared.lock();
+                    let restart = state.watcher.record_panic("file watcher", &message);
+                    state.revision += 1;
+                    drop(state);
+                    if !restart {
+                        return;
+                    }
+                }
+            }
+        }
+    }
+
+    fn run(&mut self, shared: &Shared, interval: Duration) {
         loop {
             std::thread::sleep(interval);
             if shared.lock().stopping {
                 return;
+            }
+            let injected = &shared.watcher_panics_left;
+            if injected
+                .fetch_update(
+                    std::sync::atomic::Ordering::SeqCst,
+                    std::sync::atomic::Ordering::SeqCst,
+                    |left| left.checked_sub(1),
+                )
+                .is_ok()
+            {
+                panic!("an injected file-watcher panic (Faults::watcher_panics)");
             }
             let now = self.fingerprint();
             if now == self.loaded {
@@ -371,6 +505,8 @@ impl Watcher {
             } else {
                 self.pending = Some(now);
             }
+            // A poll done: a later panic starts a new count.
+            shared.lock().watcher.panics_in_a_row = 0;
         }
     }
 
@@ -398,7 +534,7 @@ impl Watcher {
                 let timeline_first = timeline.first_frame;
                 state.scene = Some(SceneInfo {
                     name: job.scene_name().to_string(),
-                    path: self.scene_path.display().to_string(),
+                    path: self.shown.clone(),
                     first_frame: timeline.first_frame,
                     last_frame: timeline.last_frame,
                     fps: timeline.fps,
@@ -408,7 +544,7 @@ impl Watcher {
                 state.notice = reloading.then(|| {
                     format!(
                         "{} changed on disk: reloaded at {} ({:.0} ms)",
-                        self.scene_path.display(),
+                        self.shown,
                         clock_time(),
                         started.elapsed().as_secs_f64() * 1e3
                     )
@@ -430,7 +566,7 @@ impl Watcher {
                 }
             }
             Err(error) => {
-                state.problem = Some(error.to_string());
+                state.problem = Some(self.hide_folders(&error.to_string()));
                 state.notice = state.scene.is_some().then(|| {
                     "the scene has an error: showing the last version that loaded".to_string()
                 });
@@ -447,6 +583,37 @@ impl Watcher {
     }
 }
 
+/// The scene path as the page shows it: relative to the working folder, or only the file name when
+/// the scene lies outside it. Never absolute: the page (and anything that reaches the API) learns
+/// nothing about the folders above the one `snell preview` was started in.
+fn shown_path(path: &Path) -> String {
+    shown_path_from(path, std::env::current_dir().ok().as_deref())
+}
+
+fn shown_path_from(path: &Path, working: Option<&Path>) -> String {
+    let file_name = || {
+        path.file_name()
+            .map_or_else(|| "scene".to_string(), |n| n.to_string_lossy().into_owned())
+    };
+    let Some(working) = working else {
+        return file_name();
+    };
+    let absolute = working.join(path);
+    let canonical = |p: &Path| std::fs::canonicalize(p).unwrap_or_else(|_| p.to_path_buf());
+    match canonical(&absolute).strip_prefix(canonical(working)) {
+        // A path that cannot be resolved (missing) may still climb out through `..`.
+        Ok(relative)
+            if !relative.as_os_str().is_empty()
+                && relative
+                    .components()
+                    .all(|c| matches!(c, std::path::Component::Normal(_))) =>
+        {
+            relative.display().to_string()
+        }
+        _ => file_name(),
+    }
+}
+
 /// The time of day (UTC) as HH:MM:SS, for notices.
 fn clock_time() -> String {
     let secs = SystemTime::now()
@@ -459,4 +626,36 @@ fn clock_time() -> String {
         secs / 60 % 60,
         secs % 60
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_shown_scene_path_is_never_absolute() {
+        let working = tempfile::tempdir().unwrap();
+        let inside = working.path().join("scenes/pool.toml");
+        std::fs::create_dir_all(inside.parent().unwrap()).unwrap();
+        std::fs::write(&inside, "").unwrap();
+        let cwd = Some(working.path());
+        assert_eq!(shown_path_from(&inside, cwd), "scenes/pool.toml");
+        assert_eq!(
+            shown_path_from(Path::new("scenes/pool.toml"), cwd),
+            "scenes/pool.toml"
+        );
+        assert_eq!(
+            shown_path_from(Path::new("scenes/../scenes/pool.toml"), cwd),
+            "scenes/pool.toml"
+        );
+        // Outside the working folder: the file name only.
+        let elsewhere = tempfile::tempdir().unwrap();
+        let outside = elsewhere.path().join("secret-project.toml");
+        assert_eq!(shown_path_from(&outside, cwd), "secret-project.toml");
+        assert_eq!(
+            shown_path_from(Path::new("../x/secret.toml"), cwd),
+            "secret.toml"
+        );
+        assert_eq!(shown_path_from(&outside, None), "secret-project.toml");
+    }
 }

@@ -34,9 +34,15 @@ struct StripCursor {
     previous: Option<TrackingState>,
 }
 
-struct Worker {
+/// The loaded job and its generation, kept outside [`Worker`] so that a worker restarted after a
+/// panic carries on with the scene (a panic unwinds through the worker, not through this).
+struct Loaded {
     job: Option<RenderJob>,
     generation: u64,
+}
+
+struct Worker<'a> {
+    loaded: &'a mut Loaded,
     renderer: Option<Renderer>,
     textures_uploaded: bool,
     /// Tracking states of recently refracted frames, so a frame after one just rendered needs no
@@ -45,7 +51,50 @@ struct Worker {
     cursors: HashMap<Method, StripCursor>,
 }
 
-pub(super) fn run(shared: &Shared) {
+/// Runs the worker; a panic fails the frame it was on at once (500, so no request waits for it),
+/// is shown on the page and in the API, and restarts the worker with a new renderer.
+/// [`super::RESTARTS_IN_A_ROW`] panics without a frame done in between stop it: every frame
+/// request then fails at once with the reason.
+pub(super) fn supervise(shared: &Shared) {
+    let mut loaded = Loaded {
+        job: None,
+        generation: 0,
+    };
+    loop {
+        let Err(message) = crate::panics::catch(|| run(shared, &mut loaded)) else {
+            return;
+        };
+        let mut state = shared.lock();
+        state.worker_busy = false;
+        let in_flight = state.in_flight.take();
+        let restart = state.worker.record_panic("render worker", &message);
+        if let Some(key) = in_flight.filter(|key| key.generation == state.generation) {
+            let then = if restart {
+                "the worker was restarted; other frames render"
+            } else {
+                "the worker was stopped; restart snell preview"
+            };
+            state.failed.insert(
+                key,
+                (
+                    500,
+                    format!(
+                        "the render worker panicked on frame {}: {message}; {then}",
+                        key.frame
+                    ),
+                ),
+            );
+        }
+        state.revision += 1;
+        drop(state);
+        shared.wake.notify_all();
+        if !restart {
+            return;
+        }
+    }
+}
+
+fn run(shared: &Shared, loaded: &mut Loaded) {
     // The renderer is made before the first request, so no request pays for creating it.
     let renderer = match Renderer::new() {
         Ok(renderer) => Some(renderer),
@@ -55,8 +104,7 @@ pub(super) fn run(shared: &Shared) {
         }
     };
     let mut worker = Worker {
-        job: None,
-        generation: 0,
+        loaded,
         renderer,
         textures_uploaded: false,
         trackings: Lru::new(16),
@@ -69,9 +117,11 @@ pub(super) fn run(shared: &Shared) {
                 let mut guard = shared.lock();
                 let state = &mut *guard;
                 state.worker_busy = false;
+                state.in_flight = None;
                 if key.generation == state.generation {
                     match result {
                         Ok(frame) => {
+                            state.worker.panics_in_a_row = 0;
                             let first = state.scene.as_ref().map_or(0, |s| s.first_frame);
                             if let Some(strip) = state.strips.get_mut(&key.method) {
                                 if let Some(slot) =
@@ -95,6 +145,10 @@ pub(super) fn run(shared: &Shared) {
                 let result = worker.count(shared, key);
                 let mut state = shared.lock();
                 state.worker_busy = false;
+                state.in_flight = None;
+                if result.is_ok() {
+                    state.worker.panics_in_a_row = 0;
+                }
                 if key.generation == state.generation {
                     let first = state.scene.as_ref().map_or(0, |s| s.first_frame);
                     if let Some(strip) = state.strips.get_mut(&key.method) {
@@ -120,28 +174,36 @@ fn next_task(shared: &Shared, worker: &mut Worker) -> Option<Task> {
             return None;
         }
         if let Some(job) = state.incoming_job.take() {
-            worker.job = Some(job);
-            worker.generation = state.generation;
+            worker.loaded.job = Some(job);
+            worker.loaded.generation = state.generation;
             worker.textures_uploaded = false;
             worker.trackings.clear();
             worker.cursors.clear();
         }
-        if worker.job.is_some() && worker.generation == state.generation {
+        if worker.loaded.job.is_some() && worker.loaded.generation == state.generation {
+            let mut task = None;
             while let Some(key) = state.demand.pop_front() {
                 if is_wanted(&state, key) {
-                    state.worker_busy = true;
-                    return Some(Task::Render(key));
+                    task = Some(Task::Render(key));
+                    break;
                 }
             }
-            while let Some(key) = state.prefetch.pop_front() {
-                if is_wanted(&state, key) {
-                    state.worker_busy = true;
-                    return Some(Task::Render(key));
+            while task.is_none() {
+                match state.prefetch.pop_front() {
+                    Some(key) if is_wanted(&state, key) => task = Some(Task::Render(key)),
+                    Some(_) => {}
+                    None => break,
                 }
             }
-            if let Some(key) = next_count(&state, worker) {
+            if task.is_none() {
+                task = next_count(&state, worker).map(Task::Count);
+            }
+            if let Some(task) = task {
                 state.worker_busy = true;
-                return Some(Task::Count(key));
+                state.in_flight = Some(match task {
+                    Task::Render(key) | Task::Count(key) => key,
+                });
+                return Some(task);
             }
         }
         state = shared
@@ -184,9 +246,9 @@ fn next_count(state: &State, worker: &mut Worker) -> Option<FrameKey> {
     None
 }
 
-impl Worker {
+impl Worker<'_> {
     fn job_for(&mut self, method: Method) -> &mut RenderJob {
-        let job = self.job.as_mut().expect("a task implies a job");
+        let job = self.loaded.job.as_mut().expect("a task implies a job");
         job.method = method;
         job
     }
@@ -211,6 +273,9 @@ impl Worker {
     }
 
     fn render(&mut self, shared: &Shared, key: FrameKey) -> Result<CachedFrame, SnellError> {
+        if shared.faults.worker_panic_frame == Some(key.frame) {
+            panic!("an injected render-worker panic (Faults::worker_panic_frame)");
+        }
         // The ray-traced methods render on the CPU and need no GPU.
         if self.renderer.is_none() && key.method.uses_gpu() {
             let problem = shared.lock().renderer_problem.clone().unwrap_or_default();
@@ -218,7 +283,7 @@ impl Worker {
         }
         let previous = self.previous_tracking(shared, key)?;
         let (width, height) = (shared.width, shared.height);
-        let job = self.job.as_mut().expect("a task implies a job");
+        let job = self.loaded.job.as_mut().expect("a task implies a job");
         job.method = key.method;
         let renderer = self.renderer.as_mut().filter(|_| key.method.uses_gpu());
         let renderer = match renderer {
