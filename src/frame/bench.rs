@@ -569,6 +569,27 @@ fn process_cpu_secs() -> f64 {
 mod tuning {
     use super::*;
 
+    /// Tuning aid: the exact surface's global bounds (slope, curvature, height range) that every
+    /// visibility walk steps by, on frames of scenes/hard/wading_wake.toml:
+    /// `cargo test --release --lib frame::bench::tuning::wake_bounds -- --ignored --nocapture`.
+    #[test]
+    #[ignore = "tuning aid"]
+    fn wake_bounds() {
+        let job = RenderJob::prepare(Path::new("scenes/hard/wading_wake.toml")).unwrap();
+        for frame in [1, 20, 40, 48] {
+            let water = job.frame_water(frame, &mut BTreeMap::new()).unwrap();
+            let heights = water.surface();
+            let surface = water.exact_surface(&heights);
+            println!(
+                "frame {frame}: slope bound {:.4}, curvature bound {:.2} /m, heights {:?} m, largest ripple node {:?} m",
+                surface.slope_bound,
+                surface.curvature_bound,
+                surface.height_range_m,
+                water.ripples.as_ref().map(|r| r.max_abs_height_m())
+            );
+        }
+    }
+
     /// Tuning aid: `snell bench`'s wake pair alone (no GPU), on `SNELL_WAKE_SCENE` (default
     /// scenes/hard/wading_wake.toml) frames `SNELL_WAKE_FRAMES` (default 40-48):
     /// `cargo test --release --lib frame::bench::tuning::wake_pair -- --ignored --nocapture`.
