@@ -335,7 +335,7 @@ fn half_beauty_and_piz_are_what_the_readers_see() {
         "    IndexOB.X, 32-bit floating-point",
         "    CryptoObject00.R, 32-bit floating-point",
         "compression (type compression): piz",
-        "snell.output (type string): \"beauty=half compression=piz\"",
+        "snell.output (type string): \"beauty=half compression=piz layers=all\"",
     ] {
         assert!(text.contains(line), "no `{line}` in:\n{text}");
     }
@@ -349,4 +349,146 @@ fn half_beauty_and_piz_are_what_the_readers_see() {
         "{info}"
     );
     assert!(info.contains("compression: \"piz\""), "{info}");
+}
+
+/// `--layers comp`: exrheader sees only the half beauty, `Z`, the IDs and the matte, and the
+/// header says `layers=comp`; `--resume` keeps the frame for the same choice and renders it again
+/// for another; an unknown layer is named with the valid ones; `snell compare` names the layer it
+/// lacks; `snell diff` fails a test frame lacking `P` and warns when the reference lacks it.
+#[test]
+fn layers_comp_writes_what_it_says_and_the_tools_cope() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = repo().join("scenes/tiny.toml");
+    let render = |out: &Path, extra: &[&str]| {
+        let mut args = vec![
+            "render",
+            scene.to_str().unwrap(),
+            "--frames",
+            "1",
+            "--size",
+            "96x54",
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        common::snell(&args, repo())
+    };
+    let text = |output: &std::process::Output| {
+        format!(
+            "{}{}",
+            String::from_utf8_lossy(&output.stdout),
+            String::from_utf8_lossy(&output.stderr)
+        )
+    };
+    let (all, comp) = (dir.path().join("all"), dir.path().join("comp"));
+    for (out, extra) in [(&all, &[][..]), (&comp, &["--layers", "comp"][..])] {
+        let output = render(out, extra);
+        assert!(output.status.success(), "{}", text(&output));
+    }
+    let path = comp.join("tiny.0001.exr");
+    let header = run("exrheader", &[path.to_str().unwrap()], DEBIAN_TOOLS);
+    for line in [
+        "    R, 16-bit floating-point",
+        "    A, 16-bit floating-point",
+        "    Z, 32-bit floating-point",
+        "    IndexOB.X, 32-bit floating-point",
+        "    CryptoObject00.A, 32-bit floating-point",
+        "    WaterMatte.X, 16-bit floating-point",
+        "cryptomatte/",
+        "snell.output (type string): \"beauty=half compression=zip layers=comp\"",
+    ] {
+        assert!(header.contains(line), "no `{line}` in:\n{header}");
+    }
+    for absent in [
+        "P.X",
+        "ApparentDepth",
+        "Direct",
+        "Refraction",
+        "SkyReflection",
+        "Flag",
+    ] {
+        assert!(!header.contains(absent), "`{absent}` in:\n{header}");
+    }
+    let all_header = run(
+        "exrheader",
+        &[all.join("tiny.0001.exr").to_str().unwrap()],
+        DEBIAN_TOOLS,
+    );
+    assert!(
+        all_header.contains("layers=all\"") && all_header.contains("    P.X, 32-bit"),
+        "{all_header}"
+    );
+
+    // The same choice resumes; another renders the frame again, with its layers.
+    let resumed = render(&comp, &["--layers", "COMP", "--resume"]);
+    assert!(
+        text(&resumed).contains("nothing to render"),
+        "{}",
+        text(&resumed)
+    );
+    let again = render(&comp, &["--resume"]);
+    assert!(again.status.success(), "{}", text(&again));
+    assert!(
+        !text(&again).contains("nothing to render"),
+        "{}",
+        text(&again)
+    );
+    assert!(read_channels(&path).unwrap().get("P.X").is_some());
+    let output = render(&comp, &["--layers", "comp"]);
+    assert!(output.status.success(), "{}", text(&output));
+
+    let unknown = render(&dir.path().join("x"), &["--layers", "comp,Motoin"]);
+    assert!(!unknown.status.success());
+    let message = text(&unknown);
+    for word in [
+        "unknown layer `Motoin`",
+        "all, comp",
+        "beauty, Z, ApparentDepth",
+        "FlagExtrapolated",
+    ] {
+        assert!(message.contains(word), "no `{word}` in: {message}");
+    }
+    assert!(!dir.path().join("x").join("tiny.0001.exr").exists());
+
+    let (all_frame, comp_frame) = (all.join("tiny.0001.exr"), comp.join("tiny.0001.exr"));
+    let compare = common::snell(
+        &[
+            "compare",
+            all_frame.to_str().unwrap(),
+            comp_frame.to_str().unwrap(),
+        ],
+        repo(),
+    );
+    assert_eq!(compare.status.code(), Some(2), "{}", text(&compare));
+    assert!(
+        text(&compare).contains("tiny.0001.exr: has no `P` layer (P.X, P.Y, P.Z)"),
+        "{}",
+        text(&compare)
+    );
+    let diff = |a: &Path, b: &Path| {
+        // In the temporary folder: a failing diff writes its heat maps under the working folder.
+        common::snell(
+            &["diff", a.to_str().unwrap(), b.to_str().unwrap()],
+            dir.path(),
+        )
+    };
+    let lacking_test = diff(&all_frame, &comp_frame);
+    assert_eq!(
+        lacking_test.status.code(),
+        Some(2),
+        "{}",
+        text(&lacking_test)
+    );
+    assert!(
+        text(&lacking_test).contains("the test frame has no `P` layer"),
+        "{}",
+        text(&lacking_test)
+    );
+    let lacking_reference = diff(&comp_frame, &all_frame);
+    assert!(
+        text(&lacking_reference).contains("the reference has no `P` layer"),
+        "{}",
+        text(&lacking_reference)
+    );
+    assert!(!text(&lacking_reference).contains("no `Z` layer"));
 }

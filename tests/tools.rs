@@ -379,8 +379,8 @@ fn compare_of_a_frame_with_itself_is_zero_and_bad_input_is_exit_2() {
         &compare(&frame1, &old_path, &[]),
         2,
         &[
-            "old.exr: the frame has no usable object-id layer",
-            "render it again",
+            "old.exr: has no `IndexOB` layer (IndexOB.X)",
+            "render the frame again with --layers all",
         ],
     );
     let small = dir.path().join("small");

@@ -497,6 +497,7 @@ pub fn compare_frames(
     if let Some(finding) = new_non_finite(r, t) {
         findings.push(finding);
     }
+    findings.extend(missing_layers(r, t));
     let flip = flip_ldr(&tonemap_srgb8(r, 0.0), &tonemap_srgb8(t, 0.0))
         .expect("sizes were checked equal above");
     let depth = layer_difference(seen_depths(r), seen_depths(t), thresholds.depth_tolerance_m);
@@ -558,6 +559,34 @@ pub fn compare_frames(
         position,
     };
     (Some(metrics), counts, findings, Some(flip.error_map_png))
+}
+
+/// `Z` and `P` are compared only where both frames have them (`--layers` may leave them out): a
+/// layer the reference has and the test lacks fails, one the reference lacks is not compared (a
+/// warning).
+fn missing_layers(reference: &RenderedFrame, test: &RenderedFrame) -> Vec<Finding> {
+    [
+        ("Z", reference.depth_m.is_empty(), test.depth_m.is_empty()),
+        ("P", reference.position.is_empty(), test.position.is_empty()),
+    ]
+    .into_iter()
+    .filter_map(|(layer, reference_lacks, test_lacks)| match (reference_lacks, test_lacks) {
+        (false, false) => None,
+        (false, true) => Some(Finding {
+            verdict: Verdict::Fail,
+            message: format!(
+                "the test frame has no `{layer}` layer (written with --layers that leaves it out?) but the reference has one: {layer} not compared"
+            ),
+        }),
+        (true, test_lacks) => Some(Finding {
+            verdict: Verdict::Warn,
+            message: format!(
+                "the reference has no `{layer}` layer{}: {layer} not compared (render with --layers all to compare it)",
+                if test_lacks { " and neither has the test frame" } else { "" }
+            ),
+        }),
+    })
+    .collect()
 }
 
 /// NaN or infinite samples in `test` where `reference` has finite ones: always a failure, however

@@ -100,6 +100,32 @@ pub fn compare_frames(
         ),
         None => default_flags_side(&a_method, &b_method),
     };
+    // What the measurement needs, by name, before it says something vaguer about it.
+    let flags_frame = match flags_side {
+        Side::A => (a, a_path),
+        Side::B => (b, b_path),
+    };
+    for (frame, path) in [(a, a_path), (b, b_path)] {
+        let mut lacking = Vec::new();
+        if frame.position.is_empty() {
+            lacking.push("no `P` layer (P.X, P.Y, P.Z)");
+        }
+        if frame.object.is_empty() {
+            lacking.push("no `IndexOB` layer (IndexOB.X)");
+        }
+        if std::ptr::eq(frame, flags_frame.0) && frame.flags.is_empty() {
+            lacking.push("no flag layers (FlagConvergence.X, ...: they define \"flagged\")");
+        }
+        if !lacking.is_empty() {
+            return Err(ToolError::InputFile {
+                path: path.to_path_buf(),
+                problem: format!(
+                    "has {}: snell compare measures positions by P and IndexOB and leaves out flagged pixels; render the frame again with --layers all (or a list with P,IndexOB and the Flag layers)",
+                    lacking.join(", ")
+                ),
+            });
+        }
+    }
     let options = CompareOptions {
         flags_from: flags_side,
         eyes: a_meta

@@ -71,6 +71,172 @@ pub fn crypto_rank_channels() -> Vec<(String, String)> {
         .collect()
 }
 
+/// A layer of the map that frames hold today, as `--layers` names it: the layer name before the
+/// dot, `beauty` for `R, G, B, A` and `Z` for the depth.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Layer {
+    Beauty,
+    Depth,
+    ApparentDepth,
+    Position,
+    IndexOb,
+    CryptoObject,
+    WaterMatte,
+    Direct,
+    Refraction,
+    SkyReflection,
+    FlagConvergence,
+    FlagBoundary,
+    FlagPopping,
+    FlagExtrapolated,
+}
+
+impl Layer {
+    /// Every layer, in the map's order.
+    pub const ALL: [Layer; 14] = [
+        Layer::Beauty,
+        Layer::Depth,
+        Layer::ApparentDepth,
+        Layer::Position,
+        Layer::IndexOb,
+        Layer::CryptoObject,
+        Layer::WaterMatte,
+        Layer::Direct,
+        Layer::Refraction,
+        Layer::SkyReflection,
+        Layer::FlagConvergence,
+        Layer::FlagBoundary,
+        Layer::FlagPopping,
+        Layer::FlagExtrapolated,
+    ];
+
+    /// The name `--layers` takes and `snell.output` gives.
+    pub fn name(self) -> &'static str {
+        match self {
+            Layer::Beauty => "beauty",
+            Layer::Depth => "Z",
+            Layer::ApparentDepth => "ApparentDepth",
+            Layer::Position => "P",
+            Layer::IndexOb => "IndexOB",
+            Layer::CryptoObject => "CryptoObject",
+            Layer::WaterMatte => "WaterMatte",
+            Layer::Direct => "Direct",
+            Layer::Refraction => "Refraction",
+            Layer::SkyReflection => "SkyReflection",
+            Layer::FlagConvergence => "FlagConvergence",
+            Layer::FlagBoundary => "FlagBoundary",
+            Layer::FlagPopping => "FlagPopping",
+            Layer::FlagExtrapolated => "FlagExtrapolated",
+        }
+    }
+
+    /// The flag layer of a [`flag_bits`] bit.
+    pub fn of_flag(bit: u32) -> Layer {
+        match bit {
+            flag_bits::CONVERGENCE => Layer::FlagConvergence,
+            flag_bits::BOUNDARY => Layer::FlagBoundary,
+            flag_bits::POPPING => Layer::FlagPopping,
+            flag_bits::EXTRAPOLATED => Layer::FlagExtrapolated,
+            _ => unreachable!("flag bit {bit:#x} has no layer"),
+        }
+    }
+
+    fn bit(self) -> u32 {
+        1 << self as u32
+    }
+}
+
+/// Which layers a frame holds (`--layers`). The beauty is always among them: every reader shows
+/// it first, and snell's own tools and `--resume` read it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LayerSet(u32);
+
+impl Default for LayerSet {
+    /// Every layer (`all`), what frames held before `--layers` existed.
+    fn default() -> Self {
+        LayerSet::ALL
+    }
+}
+
+impl LayerSet {
+    /// The preset `all`: every layer of the map.
+    pub const ALL: LayerSet = LayerSet::of(&Layer::ALL);
+    /// The preset `comp`: what a compositor grades with (the beauty, which `comp` also stores as
+    /// half floats, `Z`, the IDs and the water matte).
+    pub const COMP: LayerSet = LayerSet::of(&[
+        Layer::Beauty,
+        Layer::Depth,
+        Layer::IndexOb,
+        Layer::CryptoObject,
+        Layer::WaterMatte,
+    ]);
+    /// The presets `--layers` takes by name.
+    pub const PRESETS: [(&'static str, LayerSet); 2] =
+        [("all", LayerSet::ALL), ("comp", LayerSet::COMP)];
+
+    const fn of(layers: &[Layer]) -> LayerSet {
+        let mut bits = 1 << Layer::Beauty as u32;
+        let mut i = 0;
+        while i < layers.len() {
+            bits |= 1 << layers[i] as u32;
+            i += 1;
+        }
+        LayerSet(bits)
+    }
+
+    pub fn has(self, layer: Layer) -> bool {
+        self.0 & layer.bit() != 0
+    }
+
+    /// The layers held, in the map's order.
+    pub fn layers(self) -> impl Iterator<Item = Layer> {
+        Layer::ALL.into_iter().filter(move |&layer| self.has(layer))
+    }
+
+    /// `all`, `comp`, or the layers' names joined by commas (`beauty,Z,P`): what the header's
+    /// `snell.output` gives after `layers=`.
+    pub fn label(self) -> String {
+        if let Some((name, _)) = Self::PRESETS.iter().find(|(_, set)| *set == self) {
+            return name.to_string();
+        }
+        self.layers().map(Layer::name).collect::<Vec<_>>().join(",")
+    }
+
+    /// Reads `--layers`: comma-separated presets and layer names (any case), their union, the
+    /// beauty always included. Also says whether `comp` was among them (it stores the beauty as
+    /// half floats). The error names the unknown word and lists every valid one.
+    pub fn parse(text: &str) -> Result<(LayerSet, bool), String> {
+        let mut bits = LayerSet::of(&[]).0;
+        let mut half = false;
+        for word in text.split(',').map(str::trim) {
+            if let Some((name, set)) = Self::PRESETS
+                .iter()
+                .find(|(name, _)| name.eq_ignore_ascii_case(word))
+            {
+                bits |= set.0;
+                half |= *name == "comp";
+            } else if let Some(layer) = Layer::ALL
+                .iter()
+                .find(|layer| layer.name().eq_ignore_ascii_case(word))
+            {
+                bits |= layer.bit();
+            } else {
+                let what = if word.is_empty() {
+                    "an empty layer name".to_string()
+                } else {
+                    format!("unknown layer `{word}`")
+                };
+                return Err(format!(
+                    "{what}; give presets ({}) or layers ({}), separated by commas, e.g. --layers comp,P",
+                    Self::PRESETS.map(|(name, _)| name).join(", "),
+                    Layer::ALL.map(Layer::name).join(", ")
+                ));
+            }
+        }
+        Ok((LayerSet(bits), half))
+    }
+}
+
 /// Whether a layer is in frames today or only reserved for later work.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Status {
@@ -219,6 +385,69 @@ mod tests {
         assert!(!blender_keeps(legacy::OBJECT));
         assert!(blender_keeps("P.X") && blender_keeps("Z") && blender_keeps("diffuse.RX"));
         assert!(blender_keeps("layer.pass.alpha") && !blender_keeps("layer.pass.QQ"));
+    }
+
+    #[test]
+    fn layers_parse_presets_names_and_their_union() {
+        let (all, half) = LayerSet::parse("all").unwrap();
+        assert_eq!((all, half), (LayerSet::ALL, false));
+        assert!(Layer::ALL.iter().all(|&layer| all.has(layer)));
+        let (comp, half) = LayerSet::parse("comp").unwrap();
+        assert!(half, "comp stores the beauty as half floats");
+        assert_eq!(comp.label(), "comp");
+        assert_eq!(
+            comp.layers().collect::<Vec<_>>(),
+            [
+                Layer::Beauty,
+                Layer::Depth,
+                Layer::IndexOb,
+                Layer::CryptoObject,
+                Layer::WaterMatte
+            ]
+        );
+        // Any case, spaces around commas; the beauty is always there; union with a preset.
+        let (list, half) = LayerSet::parse("p, z,flagPopping").unwrap();
+        assert!(!half);
+        assert_eq!(list.label(), "beauty,Z,P,FlagPopping");
+        let (more, half) = LayerSet::parse("comp,P").unwrap();
+        assert!(half && more.has(Layer::Position) && more.has(Layer::CryptoObject));
+        assert!(!more.has(Layer::Direct));
+        assert_eq!(more.label(), "beauty,Z,P,IndexOB,CryptoObject,WaterMatte");
+        assert_eq!(LayerSet::parse("beauty").unwrap().0.label(), "beauty");
+    }
+
+    #[test]
+    fn an_unknown_layer_is_named_with_every_valid_one() {
+        let message = LayerSet::parse("Z,Motion").unwrap_err();
+        assert!(message.contains("unknown layer `Motion`"), "{message}");
+        for name in ["all", "comp"]
+            .into_iter()
+            .chain(Layer::ALL.map(Layer::name))
+        {
+            assert!(message.contains(name), "{name} not in: {message}");
+        }
+        let message = LayerSet::parse("Z,,P").unwrap_err();
+        assert!(message.contains("an empty layer name"), "{message}");
+    }
+
+    /// Every layer `--layers` names is a layer of the map's written rows.
+    #[test]
+    fn every_layer_name_is_a_written_row() {
+        for layer in Layer::ALL {
+            let name = layer.name();
+            let found = LAYERS.iter().any(|row| {
+                row.status == Status::Written
+                    && match layer {
+                        Layer::Beauty => row.channels == "R, G, B, A",
+                        Layer::Depth => row.channels == "Z",
+                        _ => {
+                            row.channels.starts_with(&format!("{name}."))
+                                || row.channels.starts_with(&format!("{name}00."))
+                        }
+                    }
+            });
+            assert!(found, "{name}");
+        }
     }
 
     #[test]

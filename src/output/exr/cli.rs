@@ -1,6 +1,7 @@
 //! The EXR options of `snell render` (flattened into its arguments), kept here so the channel
 //! map's options live beside the map.
 
+use super::channels::LayerSet;
 use super::{ExrCompression, WriteOptions};
 use crate::frame::{HeaderStamp, SnellError};
 
@@ -21,6 +22,34 @@ pub struct ExrArgs {
     /// run-length; none. The header's `compression` and `snell.output` say which was used.
     #[arg(long, value_enum, value_name = "KIND", default_value_t = ExrCompression::Zip)]
     pub compression: ExrCompression,
+    /// Which layers of the channel map (README "The EXR channel map") to write, comma-separated:
+    /// the presets `all` (every layer, the default) and `comp` (the beauty as half floats, `Z`,
+    /// `IndexOB`, `CryptoObject` and `WaterMatte`), and layer names (any case): beauty, Z,
+    /// ApparentDepth, P, IndexOB, CryptoObject, WaterMatte, Direct, Refraction, SkyReflection,
+    /// FlagConvergence, FlagBoundary, FlagPopping, FlagExtrapolated. The beauty is always
+    /// written. E.g. `--layers comp,P`. The header's `snell.output` says what was chosen;
+    /// `snell compare` needs P, IndexOB and the flags, `snell diff` compares Z and P only where
+    /// both frames have them.
+    #[arg(long, value_name = "LIST", value_parser = parse_layers)]
+    pub layers: Option<LayerChoice>,
+}
+
+/// `--layers` as given: the set and whether `comp` (half beauty) was among the words, and the
+/// words for the resume command.
+#[derive(Clone, Debug)]
+pub struct LayerChoice {
+    pub set: LayerSet,
+    pub comp: bool,
+    pub text: String,
+}
+
+fn parse_layers(text: &str) -> Result<LayerChoice, String> {
+    let (set, comp) = LayerSet::parse(text)?;
+    Ok(LayerChoice {
+        set,
+        comp,
+        text: text.to_string(),
+    })
 }
 
 impl ExrArgs {
@@ -31,9 +60,11 @@ impl ExrArgs {
 
     /// How the frames are stored.
     pub fn write_options(&self) -> WriteOptions {
+        let layers = self.layers.as_ref();
         WriteOptions {
-            half_beauty: self.half,
+            half_beauty: self.half || layers.is_some_and(|choice| choice.comp),
             compression: self.compression,
+            layers: layers.map_or(LayerSet::ALL, |choice| choice.set),
         }
     }
 
@@ -48,6 +79,9 @@ impl ExrArgs {
         }
         if self.compression != ExrCompression::default() {
             words.extend(["--compression".to_string(), self.compression.name().into()]);
+        }
+        if let Some(choice) = &self.layers {
+            words.extend(["--layers".to_string(), choice.text.clone()]);
         }
         words
     }

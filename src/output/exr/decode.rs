@@ -101,7 +101,9 @@ pub fn read_channels(path: &Path) -> Result<ExrChannels, OutputError> {
 /// pixels and the snell header attributes. `flags` comes back as the four flag bits of the flag
 /// channels. From the first layout, `Z` is converted to depth along the view axis and sky to
 /// [`SKY_DEPTH_M`], NaN positions to 0, the water matte is derived from `Z` and `P` as the first
-/// layout allowed, and the other layers it did not have come back empty.
+/// layout allowed, and the other layers it did not have come back empty. A layer `--layers` left
+/// out comes back empty too (only the beauty is always there); [`ReadMeta::channels`] lists what
+/// the file holds.
 pub fn read_frame_exr(path: &Path) -> Result<(RenderedFrame, ReadMeta), OutputError> {
     let read_error = read_error_of(path);
     // u32 channels must stay exact (the first layout's object ids): read them apart.
@@ -130,7 +132,14 @@ pub fn read_frame_exr(path: &Path) -> Result<(RenderedFrame, ReadMeta), OutputEr
     let required = |name: &str| {
         floats(name)?.ok_or_else(|| read_error(format!("channel `{name}` is missing")))
     };
-    let meta = read_meta(&first.attributes, &read_error)?;
+    let mut meta = read_meta(&first.attributes, &read_error)?;
+    meta.channels = image
+        .layer_data
+        .iter()
+        .flat_map(|layer| layer.channel_data.list.iter())
+        .map(|channel| channel.name.to_string())
+        .collect();
+    meta.channels.sort();
     let legacy_layout = meta.channel_map.is_none();
     let flag_channels = if legacy_layout {
         legacy::FLAG_CHANNELS
@@ -140,18 +149,40 @@ pub fn read_frame_exr(path: &Path) -> Result<(RenderedFrame, ReadMeta), OutputEr
 
     let [r, g, b, a] = channels::BEAUTY.map(required);
     let (r, g, b, a) = (r?, g?, b?, a?);
-    let [px, py, pz] = channels::POSITION.map(required);
-    let (px, py, pz) = (px?, py?, pz?);
-    let mut depth_m = required(channels::DEPTH)?;
+    // The first layout had every layer; the map's frames hold those `--layers` chose: a layer
+    // left out comes back empty (the flags: when none of their layers is there).
+    let layer = |name: &str| {
+        if legacy_layout {
+            required(name).map(Some)
+        } else {
+            floats(name)
+        }
+    };
+    let [px, py, pz] = channels::POSITION.map(layer);
+    let mut position: Vec<[f32; 3]> = match (px?, py?, pz?) {
+        (Some(px), Some(py), Some(pz)) => (0..pixel_count).map(|i| [px[i], py[i], pz[i]]).collect(),
+        (None, None, None) => Vec::new(),
+        _ => {
+            return Err(read_error(
+                "the layer `P` lacks some of `P.X, P.Y, P.Z`".into(),
+            ))
+        }
+    };
+    let mut depth_m = layer(channels::DEPTH)?.unwrap_or_default();
     let mut flags = vec![0u32; pixel_count];
+    let mut any_flag = false;
     for (name, bit) in flag_channels {
-        for (flags, value) in flags.iter_mut().zip(required(name)?) {
+        let Some(values) = layer(name)? else { continue };
+        any_flag = true;
+        for (flags, value) in flags.iter_mut().zip(values) {
             if value != 0.0 {
                 *flags |= bit;
             }
         }
     }
-    let mut position: Vec<[f32; 3]> = (0..pixel_count).map(|i| [px[i], py[i], pz[i]]).collect();
+    if !any_flag {
+        flags.clear();
+    }
     let object = if legacy_layout {
         match find(legacy::OBJECT) {
             Some(FlatSamples::U32(values)) => values.clone(),
@@ -371,5 +402,6 @@ fn read_meta(
         channel_map,
         object_names,
         text_attributes,
+        channels: Vec::new(),
     })
 }

@@ -181,6 +181,10 @@ pub(super) fn attributes(
             string(&serde_json::to_string(&meta.object_names).expect("strings serialise")),
         ),
     ];
+    // The Cryptomatte's metadata only with its layer (`--layers` may leave it out).
+    if !meta.write.layers.has(super::channels::Layer::CryptoObject) {
+        attributes.retain(|(name, _)| !name.starts_with("cryptomatte/"));
+    }
     if let Some(owner) = &meta.owner {
         attributes.push(("owner".into(), string(owner)));
     }

@@ -61,16 +61,18 @@ pub struct FrameMeta {
     pub write: WriteOptions,
 }
 
-/// How a frame's pixels are stored: the beauty's sample type and the file's compression. Every
-/// other layer stays float32 (or half for the 0/1 masks) whatever the choice: half-float `P`
-/// would step 4 mm at 4 m, about a pixel at 720p. Recorded in the header (`compression`, and
-/// `snell.output`).
+/// How a frame's pixels are stored: the beauty's sample type, the file's compression and which
+/// layers it holds. Every other layer stays float32 (or half for the 0/1 masks) whatever the
+/// choice: half-float `P` would step 4 mm at 4 m, about a pixel at 720p. Recorded in the header
+/// (`compression`, and `snell.output`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct WriteOptions {
     /// `R, G, B, A` as half floats (the VFX default; about 3 significant digits; brighter values
     /// than 65504 saturate there).
     pub half_beauty: bool,
     pub compression: ExrCompression,
+    /// The layers written (`--layers`; every one by default).
+    pub layers: channels::LayerSet,
 }
 
 /// The lossless compressions a frame may be written with (one for the whole file). OpenEXR's lossy
@@ -117,10 +119,14 @@ impl ExrCompression {
 }
 
 impl WriteOptions {
-    /// `beauty=float32 compression=zip`: the header's `snell.output`.
+    /// `beauty=float32 compression=zip layers=all`: the header's `snell.output`.
     pub fn label(&self) -> String {
         let beauty = if self.half_beauty { "half" } else { "float32" };
-        format!("beauty={beauty} compression={}", self.compression.name())
+        format!(
+            "beauty={beauty} compression={} layers={}",
+            self.compression.name(),
+            self.layers.label()
+        )
     }
 }
 
@@ -142,6 +148,8 @@ pub struct ReadMeta {
     pub object_names: Vec<String>,
     /// The `snell.extra.*` attributes with the prefix removed, sorted by key.
     pub text_attributes: Vec<(String, String)>,
+    /// The channels the file holds, sorted (a frame written with `--layers` lacks some).
+    pub channels: Vec<String>,
 }
 
 impl FrameMeta {
@@ -170,17 +178,27 @@ pub fn frame_path(dir: &Path, scene_name: &str, frame: u32) -> PathBuf {
 }
 
 /// Checks that every layer holds one value per pixel; the optional layers may be empty (a frame
-/// read from a file written before they existed), and are then not written.
-fn check_frame_shape(frame: &RenderedFrame) -> Result<usize, String> {
+/// read from a file written before they existed, or without them), and are then not written.
+/// `Z`, `P` and the flags may be empty only where `layers` leaves them out.
+fn check_frame_shape(frame: &RenderedFrame, layers: channels::LayerSet) -> Result<usize, String> {
+    use channels::Layer;
     if frame.width == 0 || frame.height == 0 {
         return Err(format!("frame is empty ({}x{})", frame.width, frame.height));
     }
     let pixel_count = frame.pixel_count();
     let lengths = [
         ("beauty_rgba", frame.beauty_rgba.len(), false),
-        ("depth_m", frame.depth_m.len(), false),
-        ("position", frame.position.len(), false),
-        ("flags", frame.flags.len(), false),
+        ("depth_m", frame.depth_m.len(), !layers.has(Layer::Depth)),
+        (
+            "position",
+            frame.position.len(),
+            !layers.has(Layer::Position),
+        ),
+        (
+            "flags",
+            frame.flags.len(),
+            !FLAG_CHANNELS_LAYERS.iter().any(|&layer| layers.has(layer)),
+        ),
         ("apparent_depth_m", frame.apparent_depth_m.len(), true),
         ("object", frame.object.len(), true),
         ("water_matte", frame.water_matte.len(), true),
@@ -200,6 +218,14 @@ fn check_frame_shape(frame: &RenderedFrame) -> Result<usize, String> {
     Ok(pixel_count)
 }
 
+/// The flag layers, in [`channels::FLAG_CHANNELS`]' order.
+const FLAG_CHANNELS_LAYERS: [channels::Layer; 4] = [
+    channels::Layer::FlagConvergence,
+    channels::Layer::FlagBoundary,
+    channels::Layer::FlagPopping,
+    channels::Layer::FlagExtrapolated,
+];
+
 /// The largest finite half float: a half beauty saturates there.
 const HALF_MAX: f32 = 65504.0;
 
@@ -208,9 +234,11 @@ fn frame_channels<'a>(
     frame: &'a RenderedFrame,
     crypto_ids: &'a [f32],
     water_id: f32,
-    half_beauty: bool,
+    write: &WriteOptions,
 ) -> Vec<ChannelSource<'a>> {
     use channels::*;
+    let half_beauty = write.half_beauty;
+    let has = |layer: Layer| write.layers.has(layer);
     let width = frame.width as usize;
     let row = move |y: usize| y * width..(y + 1) * width;
     let mut list = Vec::new();
@@ -230,31 +258,40 @@ fn frame_channels<'a>(
             })
         });
     }
-    list.push(ChannelSource::f32(DEPTH, move |y, out| {
-        frame.depth_m[row(y)].iter().for_each(|&d| push_f32(out, d))
-    }));
-    for (c, name) in POSITION.into_iter().enumerate() {
+    if has(Layer::Depth) {
+        list.push(ChannelSource::f32(DEPTH, move |y, out| {
+            frame.depth_m[row(y)].iter().for_each(|&d| push_f32(out, d))
+        }));
+    }
+    for (c, name) in POSITION
+        .into_iter()
+        .enumerate()
+        .filter(|_| has(Layer::Position))
+    {
         list.push(ChannelSource::f32(name, move |y, out| {
             frame.position[row(y)]
                 .iter()
                 .for_each(|p| push_f32(out, p[c]))
         }));
     }
-    for (name, bit) in FLAG_CHANNELS {
+    for (name, bit) in FLAG_CHANNELS
+        .into_iter()
+        .filter(|&(_, bit)| has(Layer::of_flag(bit)))
+    {
         list.push(ChannelSource::f16(name, move |y, out| {
             frame.flags[row(y)]
                 .iter()
                 .for_each(|f| push_f16(out, if f & bit != 0 { 1.0 } else { 0.0 }))
         }));
     }
-    if !frame.apparent_depth_m.is_empty() {
+    if !frame.apparent_depth_m.is_empty() && has(Layer::ApparentDepth) {
         list.push(ChannelSource::f32(APPARENT_DEPTH, move |y, out| {
             frame.apparent_depth_m[row(y)]
                 .iter()
                 .for_each(|&d| push_f32(out, d))
         }));
     }
-    if !frame.object.is_empty() {
+    if !frame.object.is_empty() && has(Layer::IndexOb) {
         list.push(ChannelSource::f32(INDEX_OB, move |y, out| {
             frame.object[row(y)]
                 .iter()
@@ -262,7 +299,7 @@ fn frame_channels<'a>(
         }));
     }
     let has_water = !frame.water_matte.is_empty();
-    if has_water {
+    if has_water && has(Layer::WaterMatte) {
         list.push(ChannelSource::f16(WATER_MATTE, move |y, out| {
             frame.water_matte[row(y)]
                 .iter()
@@ -274,7 +311,11 @@ fn frame_channels<'a>(
     let has_split = !frame.water_reflection.is_empty();
     if has_split {
         let is_water = move |i: usize| frame.water_matte[i] > 0.5;
-        for (c, name) in DIRECT.into_iter().enumerate() {
+        for (c, name) in DIRECT
+            .into_iter()
+            .enumerate()
+            .filter(|_| has(Layer::Direct))
+        {
             list.push(ChannelSource::f32(name, move |y, out| {
                 for i in row(y) {
                     push_f32(
@@ -288,7 +329,11 @@ fn frame_channels<'a>(
                 }
             }));
         }
-        for (c, name) in REFRACTION.into_iter().enumerate() {
+        for (c, name) in REFRACTION
+            .into_iter()
+            .enumerate()
+            .filter(|_| has(Layer::Refraction))
+        {
             list.push(ChannelSource::f32(name, move |y, out| {
                 for i in row(y) {
                     let refracted = frame.beauty_rgba[i][c] - frame.water_reflection[i][c];
@@ -296,7 +341,11 @@ fn frame_channels<'a>(
                 }
             }));
         }
-        for (c, name) in SKY_REFLECTION.into_iter().enumerate() {
+        for (c, name) in SKY_REFLECTION
+            .into_iter()
+            .enumerate()
+            .filter(|_| has(Layer::SkyReflection))
+        {
             list.push(ChannelSource::f32(name, move |y, out| {
                 for i in row(y) {
                     let reflected = frame.water_reflection[i][c];
@@ -305,7 +354,7 @@ fn frame_channels<'a>(
             }));
         }
     }
-    if !frame.object.is_empty() {
+    if !frame.object.is_empty() && has(Layer::CryptoObject) {
         let ranks = move |i: usize| {
             let object = frame.object[i];
             let object = (object != NO_OBJECT)
@@ -329,7 +378,7 @@ fn frame_channels<'a>(
 
 /// Encodes a frame into the bytes of its EXR file.
 fn encode_frame(frame: &RenderedFrame, meta: &FrameMeta) -> Result<Vec<u8>, String> {
-    check_frame_shape(frame)?;
+    check_frame_shape(frame, meta.write.layers)?;
     if let Some(&id) = frame
         .object
         .iter()
@@ -361,7 +410,7 @@ fn encode_frame(frame: &RenderedFrame, meta: &FrameMeta) -> Result<Vec<u8>, Stri
             frame,
             &crypto_ids,
             cryptomatte::id_float(&water_name),
-            meta.write.half_beauty,
+            &meta.write,
         ),
     )
 }

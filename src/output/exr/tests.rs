@@ -479,6 +479,7 @@ fn every_compression_is_lossless_and_half_touches_only_the_beauty() {
             let write = WriteOptions {
                 half_beauty,
                 compression,
+                ..WriteOptions::default()
             };
             let path = temp
                 .path()
@@ -503,7 +504,10 @@ fn every_compression_is_lossless_and_half_touches_only_the_beauty() {
             let beauty_label = if half_beauty { "half" } else { "float32" };
             assert_eq!(
                 label,
-                format!("beauty={beauty_label} compression={}", compression.name())
+                format!(
+                    "beauty={beauty_label} compression={} layers=all",
+                    compression.name()
+                )
             );
             let (read, _) = read_frame_exr(&path).unwrap();
             let mut want = expected.clone();
@@ -516,4 +520,143 @@ fn every_compression_is_lossless_and_half_touches_only_the_beauty() {
             assert_bit_exact(&want, &read);
         }
     }
+}
+
+/// `--layers`: a frame holds exactly the chosen layers, the Cryptomatte's metadata only with its
+/// layer, the header says which; read back, the layers left out come back empty and the others
+/// bit for bit.
+#[test]
+fn chosen_layers_are_the_only_ones_written_and_read_back() {
+    use channels::{Layer, LayerSet};
+    let temp = tempfile::tempdir().unwrap();
+    let frame = test_frame(6, 5);
+    let expected = as_read_back(&frame);
+    for text in ["comp", "Z,FlagPopping,SkyReflection", "beauty"] {
+        let (layers, half_beauty) = LayerSet::parse(text).unwrap();
+        let path = temp.path().join(format!("{}.exr", layers.label()));
+        let meta = FrameMeta {
+            write: WriteOptions {
+                half_beauty,
+                layers,
+                ..WriteOptions::default()
+            },
+            ..test_meta()
+        };
+        write_frame_exr(&path, &frame, &meta).unwrap();
+        let raw = read_channels(&path).unwrap();
+        let mut want: Vec<String> = Vec::new();
+        for layer in layers.layers() {
+            let names: Vec<String> = match layer {
+                Layer::Beauty => channels::BEAUTY.map(String::from).to_vec(),
+                Layer::Depth => vec![channels::DEPTH.into()],
+                Layer::ApparentDepth => vec![channels::APPARENT_DEPTH.into()],
+                Layer::Position => channels::POSITION.map(String::from).to_vec(),
+                Layer::IndexOb => vec![channels::INDEX_OB.into()],
+                Layer::CryptoObject => channels::crypto_rank_channels()
+                    .into_iter()
+                    .flat_map(|(id, coverage)| [id, coverage])
+                    .collect(),
+                Layer::WaterMatte => vec![channels::WATER_MATTE.into()],
+                Layer::Direct => channels::DIRECT.map(String::from).to_vec(),
+                Layer::Refraction => channels::REFRACTION.map(String::from).to_vec(),
+                Layer::SkyReflection => channels::SKY_REFLECTION.map(String::from).to_vec(),
+                flag => channels::FLAG_CHANNELS
+                    .iter()
+                    .filter(|(_, bit)| Layer::of_flag(*bit) == flag)
+                    .map(|(name, _)| name.to_string())
+                    .collect(),
+            };
+            want.extend(names);
+        }
+        want.sort();
+        let got: Vec<String> = raw.channels.keys().cloned().collect();
+        assert_eq!(got, want, "{text}");
+        assert_eq!(
+            raw.types["R"],
+            if half_beauty { "f16" } else { "f32" },
+            "{text}"
+        );
+        let crypto_attributes = raw
+            .attributes
+            .other
+            .keys()
+            .filter(|name| name.to_string().starts_with("cryptomatte/"))
+            .count();
+        assert_eq!(
+            crypto_attributes,
+            if layers.has(Layer::CryptoObject) {
+                4
+            } else {
+                0
+            },
+            "{text}"
+        );
+        let label = match raw.attributes.other.get(&header::text(header::OUTPUT)) {
+            Some(::exr::meta::attribute::AttributeValue::Text(label)) => label.to_string(),
+            other => panic!("snell.output is {other:?}"),
+        };
+        assert!(
+            label.ends_with(&format!(" layers={}", layers.label())),
+            "{label}"
+        );
+
+        let (read, read_meta) = read_frame_exr(&path).unwrap();
+        assert_eq!(read_meta.channels, want);
+        let beauty = |f: &RenderedFrame| {
+            f.beauty_rgba
+                .iter()
+                .flatten()
+                .map(|v| {
+                    if half_beauty {
+                        ::exr::prelude::f16::from_f32(*v).to_f32().to_bits()
+                    } else {
+                        v.to_bits()
+                    }
+                })
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(beauty(&read), beauty(&expected), "{text}");
+        let bits = |values: &[f32]| values.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+        if layers.has(Layer::Depth) {
+            assert_eq!(bits(&read.depth_m), bits(&expected.depth_m));
+        } else {
+            assert!(read.depth_m.is_empty());
+        }
+        assert_eq!(read.position.is_empty(), !layers.has(Layer::Position));
+        assert_eq!(read.object.is_empty(), !layers.has(Layer::IndexOb));
+        if layers.has(Layer::FlagPopping) {
+            let popping = |f: &RenderedFrame| {
+                f.flags
+                    .iter()
+                    .map(|f| f & crate::draw::flag_bits::POPPING)
+                    .collect::<Vec<_>>()
+            };
+            assert_eq!(
+                read.flags,
+                popping(&expected),
+                "only the popping bit is read"
+            );
+        } else {
+            assert!(read.flags.is_empty());
+        }
+    }
+}
+
+/// A frame without `Z` cannot be written with `Z` chosen; without it, it can.
+#[test]
+fn a_chosen_layer_must_be_in_the_frame() {
+    let temp = tempfile::tempdir().unwrap();
+    let mut frame = test_frame(4, 3);
+    frame.depth_m.clear();
+    let error = write_frame_exr(&temp.path().join("a.exr"), &frame, &test_meta()).unwrap_err();
+    assert!(error.to_string().contains("depth_m"), "{error}");
+    let (layers, _) = channels::LayerSet::parse("P,IndexOB").unwrap();
+    let meta = FrameMeta {
+        write: WriteOptions {
+            layers,
+            ..WriteOptions::default()
+        },
+        ..test_meta()
+    };
+    write_frame_exr(&temp.path().join("b.exr"), &frame, &meta).unwrap();
 }
