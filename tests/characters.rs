@@ -670,6 +670,43 @@ fn joint_index_out_of_range_is_reported() {
     );
 }
 
+/// An animation channel whose target node is out of range or whose path is not a property: the
+/// `gltf` crate unwraps both when the animation is read (a panic), so the loader checks them first.
+#[test]
+fn animation_channel_targets_out_of_range_are_reported() {
+    let original: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(repo_path("tests/gltf/step.gltf")).unwrap()).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let mut json = original.clone();
+    json["animations"][0]["channels"][0]["target"]["node"] = serde_json::json!(99);
+    let error = load_err_written(dir.path(), "node.gltf", serde_json::to_vec(&json).unwrap());
+    assert_mentions(
+        &error,
+        &[
+            "node.gltf",
+            "animations[0].channels[0].target.node",
+            "node 99 of 4 nodes",
+        ],
+    );
+    let mut json = original.clone();
+    json["animations"][0]["channels"][1]["target"]["path"] = serde_json::json!("bogus");
+    let error = load_err_written(dir.path(), "path.gltf", serde_json::to_vec(&json).unwrap());
+    assert_mentions(
+        &error,
+        &[
+            "path.gltf",
+            "animations[0].channels[1].target.path",
+            "translation, rotation, scale or weights",
+        ],
+    );
+    // A legal path on a node without morph targets loads (the loader ignores weights).
+    let mut json = original;
+    json["animations"][0]["channels"][2]["target"]["path"] = serde_json::json!("weights");
+    let path = dir.path().join("weights.gltf");
+    std::fs::write(&path, serde_json::to_vec(&json).unwrap()).unwrap();
+    CharacterAsset::load(&path).unwrap_or_else(|e| panic!("{e}"));
+}
+
 #[test]
 fn weights_summing_to_zero_are_reported() {
     let error = load_err(&repo_path("tests/gltf/zero_weights.gltf"));
