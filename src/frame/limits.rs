@@ -8,9 +8,7 @@ use super::characters::Character;
 use super::{Method, SnellError};
 use crate::mesh::{Object, Texture};
 use crate::scene::limits::GEOMETRY_LIMIT_M;
-use crate::scene::resources::{
-    self, human_bytes, Estimate, MAX_OBJECTS, MAX_RIPPLE_NODE_STEPS, MEMORY_LIMIT_VARIABLE,
-};
+use crate::scene::resources::{self, human_bytes, Estimate, MAX_OBJECTS, MEMORY_LIMIT_VARIABLE};
 use crate::scene::Scene;
 
 /// Bytes the GPU stage reads back per pixel: beauty (float32 RGBA), position (float32 RGBA) and
@@ -50,12 +48,12 @@ pub fn check_image_size(method: Method, width: u32, height: u32) -> Result<(), S
 }
 
 /// The scene's estimate with the loaded characters and the textures added, checked: vertex
-/// count, reach and material count of each character, and the ripple work of a frame.
+/// count, reach and material count of each character (the ripple grid is bounded by its node
+/// count in `scene::resources`: the spectral step is one pass a frame).
 pub fn check_loaded(
     scene: &Scene,
     characters: &[Character],
     textures: &[Texture],
-    ripple_node_steps: u64,
 ) -> Result<Estimate, SnellError> {
     let mut estimate = scene.resources;
     let mut counts = Vec::new();
@@ -120,24 +118,6 @@ pub fn check_loaded(
     });
     let decoded: u64 = textures.iter().map(|t| t.rgba8_srgb.len() as u64).sum();
     estimate.texture_bytes = decoded + (textures.len().max(2) as u64) * max_w * max_h * 4 * 4 / 3;
-    if ripple_node_steps > MAX_RIPPLE_NODE_STEPS {
-        let path = crate::scene::SourceRef {
-            file: scene.path.clone(),
-            line: 1,
-            column: 1,
-            key: "water.ripples".into(),
-        };
-        return Err(path
-            .error(
-                format!(
-                    "the ripples need {ripple_node_steps} node updates a frame ({} nodes, stepped within \
-                     their stability limit at {} fps), more than {MAX_RIPPLE_NODE_STEPS}",
-                    estimate.ripple_nodes, scene.timeline.fps
-                ),
-                "use fewer ripple nodes (a coarser [water.ripples] resolution)",
-            )
-            .into());
-    }
     Ok(estimate)
 }
 

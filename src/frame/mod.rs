@@ -378,13 +378,7 @@ impl RenderJob {
         let loaded = characters::load_characters(&scene, &mut textures)?;
         let scene_files = inputs::digest_scene_files(&scene, &loaded)?;
         let dynamics = characters::Dynamics::new(&scene, loaded, &scene_files)?;
-        let ripple_node_steps = dynamics.simulation.as_ref().map_or(0, |simulation| {
-            // The spectral step integrates a whole frame exactly: no substeps, one pass of a few
-            // cosine transforms over the nodes.
-            simulation.settings().node_count() as u64
-        });
-        let resources =
-            limits::check_loaded(&scene, &dynamics.characters, &textures, ripple_node_steps)?;
+        let resources = limits::check_loaded(&scene, &dynamics.characters, &textures)?;
         let waves = WaveField {
             level_m: scene.water.level_m,
             waves: scene.water.waves.iter().map(wave_from_spec).collect(),

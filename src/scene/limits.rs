@@ -138,7 +138,6 @@ pub const KEY_RANGES: &[KeyRange] = &[
     closed("water.wave[].phase_rad", -1000.0, 1000.0, "rad", "0.0"),
     above("water.wave[].speed_m_per_s", 0.0, 1000.0, "m/s", "1.5"),
     whole("water.ripples.resolution[]", 3.0, 4096.0, "[256, 128]"),
-    above("water.ripples.speed_m_per_s", 0.0, 10.0, "m/s", "0.5"),
     closed("water.ripples.depth_m", 0.005, 1000.0, "m", "0.5"),
     closed(
         "water.ripples.surface_tension_n_per_m",

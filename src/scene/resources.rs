@@ -25,8 +25,6 @@ pub const MAX_WAVES: usize = 256;
 pub const MAX_WAVE_SAMPLES: u64 = 1 << 30;
 /// Ripple grid nodes (2048 x 2048).
 pub const MAX_RIPPLE_NODES: u64 = 1 << 22;
-/// Ripple node updates a frame (nodes times substeps): about a second of work on one core.
-pub const MAX_RIPPLE_NODE_STEPS: u64 = 1 << 30;
 /// Vertices of the built scene (static objects and characters together).
 pub const MAX_VERTICES: u64 = 4_000_000;
 /// Drawn objects (a pool counts three): the GPU's material table.
