@@ -30,9 +30,16 @@ struct Cli {
 enum Command {
     /// Render a scene's frames to OpenEXR (beauty, Z, true position P, flag masks) and a report.
     ///
-    /// Frames land in DIR/<scene>.<frame>.exr (4-digit frame numbers); DIR/report.jsonl gets one JSON
-    /// line per frame with flag counts and seconds per stage. Each frame is written under a temporary
-    /// name and renamed, so an interrupted render never leaves a truncated frame.
+    /// Frames land in DIR/<scene>.<frame>.exr (4-digit frame numbers) or where --out's pattern
+    /// says; DIR/report.jsonl gets one JSON line per frame with flag counts and seconds per stage.
+    /// Each frame is written under a temporary name and renamed, so an interrupted render never
+    /// leaves a truncated frame.
+    ///
+    /// Any number of renders may write one folder at once, on one machine or several (a farm's
+    /// chunks, overlapping or not): the report is updated under a lock so no row is lost, each
+    /// version of a scene keeps its own simulation checkpoints, and --resume afterwards keeps
+    /// every whole frame. With stdout not a terminal, each written frame is one line there
+    /// (frame, seconds, flag counts); --log-json makes it JSON.
     ///
     /// Ctrl-C (or SIGTERM) stops after the frame in flight is written, prints the frames done and
     /// the command that finishes the render, and exits with 130 (143 for SIGTERM); a second Ctrl-C
@@ -42,11 +49,15 @@ enum Command {
     Render {
         /// The scene file (TOML), e.g. scenes/pool.toml.
         scene: PathBuf,
-        /// Frames to render: "A-B" or a single frame "N" (default: the scene's whole timeline).
-        #[arg(long, value_name = "A-B")]
+        /// Frames to render: a frame "N", a range "A-B", a range with a step "A-BxS" (A, A+S, ...
+        /// up to B), or a comma-separated list of these, e.g. "1-48x4,50" (default: the scene's
+        /// whole timeline). Frames are rendered in order, each once.
+        #[arg(long, value_name = "LIST")]
         frames: Option<String>,
-        /// Output directory (default: output/<scene name>/).
-        #[arg(long, value_name = "DIR")]
+        /// Output folder (default: output/<scene name>/), or a file pattern whose `#` run is the
+        /// frame number padded to that many digits, e.g. shots/pool/render.####.exr; husk's
+        /// $F4 works too ($F: no padding). The report and the checkpoints go in its folder.
+        #[arg(long, value_name = "DIR|PATTERN")]
         out: Option<PathBuf>,
         /// Image size in pixels.
         #[arg(long, value_name = "WxH", default_value = "1280x720")]
@@ -82,6 +93,12 @@ enum Command {
         /// unreadable, made from other inputs).
         #[arg(long)]
         resume: bool,
+        /// Print one JSON object per written frame on stdout: {"frame", "secs" (its stages, the
+        /// write included), "path", "counts" (flag counts per vertex and per triangle)}. Without
+        /// it, when stdout is not a terminal (a farm's log), the same is printed as one line of
+        /// text per frame.
+        #[arg(long)]
+        log_json: bool,
         #[command(flatten)]
         exr: snell::output::exr::cli::ExrArgs,
     },
@@ -362,6 +379,7 @@ fn run(cli: Cli) -> u8 {
             method,
             subdivision_px,
             resume,
+            log_json,
             exr,
         } => render(
             &scene,
@@ -370,7 +388,7 @@ fn run(cli: Cli) -> u8 {
             &size,
             png,
             (method.as_deref(), subdivision_px),
-            resume,
+            (resume, log_json),
             &exr,
         ),
         Command::Chart {
@@ -451,7 +469,7 @@ fn render(
     size: &str,
     png: bool,
     (method_arg, subdivision_px): (Option<&str>, f32),
-    resume: bool,
+    (resume, log_json): (bool, bool),
     exr: &snell::output::exr::cli::ExrArgs,
 ) -> Result<(), SnellError> {
     let (width, height) = frame::parse_size(size)?;
@@ -472,11 +490,19 @@ fn render(
     job.subdivision.tolerance_px = subdivision_px;
     job.stamp = stamp;
     job.write = exr.write_options();
-    let range = match frames {
-        Some(text) => FrameRange::parse(text, job.timeline())?,
-        None => FrameRange::whole(job.timeline()),
+    let frame_list: Vec<u32> = match frames {
+        Some(text) => frame::parse_frame_list(text, job.timeline())?,
+        None => FrameRange::whole(job.timeline()).frames().collect(),
     };
-    let out_dir = out.unwrap_or_else(|| PathBuf::from("output").join(job.scene_name()));
+    // `--out` names a folder, or a file pattern whose folder holds the report and checkpoints.
+    let out_arg = out.unwrap_or_else(|| PathBuf::from("output").join(job.scene_name()));
+    let output = match snell::output::pattern::OutputPattern::parse(&out_arg)
+        .map_err(SnellError::Argument)?
+    {
+        Some(pattern) => pattern,
+        None => snell::output::pattern::OutputPattern::for_scene(&out_arg, job.scene_name()),
+    };
+    let out_dir = output.dir().to_path_buf();
     if let Some(max_error_px) = job.scene.quality.max_error_px {
         if method_arg.is_some() {
             errln!(
@@ -500,7 +526,7 @@ fn render(
     let mut resume_command = resume_command_line(
         scene_path,
         frames,
-        &out_dir,
+        &out_arg,
         width,
         height,
         png,
@@ -510,6 +536,9 @@ fn render(
         && subdivision_px != snell::refraction::subdivision::DEFAULT_TOLERANCE_PX
     {
         resume_command.push_str(&format!(" --subdivision-px {subdivision_px}"));
+    }
+    if log_json {
+        resume_command.push_str(" --log-json");
     }
     for word in exr.command_words() {
         resume_command.push(' ');
@@ -523,12 +552,19 @@ fn render(
         }
     };
     let outcome = job.render_sequence(&frame::resume::SequenceOptions {
-        range,
+        frames: &frame_list,
         width,
         height,
-        out_dir: &out_dir,
+        output: &output,
         write_png: png,
         progress: true,
+        log: if log_json {
+            frame::resume::FrameLog::Json
+        } else if std::io::IsTerminal::is_terminal(&std::io::stdout()) {
+            frame::resume::FrameLog::Quiet
+        } else {
+            frame::resume::FrameLog::Text
+        },
         resume,
         stop,
     })?;
@@ -537,7 +573,7 @@ fn render(
         errln!(
             "interrupted: {} of {} frame(s) done in {} ({}); not rendered: {}",
             done.len(),
-            range.len(),
+            frame_list.len(),
             out_dir.display(),
             frame::resume::frame_list(&done),
             frame::resume::frame_list(&outcome.remaining)

@@ -206,7 +206,11 @@ fn render_writes_frames_and_report() {
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
         .collect();
     names.sort();
-    assert_eq!(names, ["report.jsonl", "tiny.0002.exr", "tiny.0003.exr"]);
+    // The report's lock file (farm-safe updates, tests/farm.rs) is the only hidden file.
+    assert_eq!(
+        names,
+        [".report.jsonl.lock", "report.jsonl", "tiny.0002.exr", "tiny.0003.exr"]
+    );
     let report = std::fs::read_to_string(out.join("report.jsonl")).unwrap();
     let rows: Vec<serde_json::Value> = report
         .lines()

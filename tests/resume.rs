@@ -80,7 +80,7 @@ fn frame_files(dir: &Path) -> Vec<(u32, PathBuf)> {
     frames
 }
 
-/// Temporary files (`.<name>.tmp-<pid>`) anywhere under `dir`.
+/// Temporary files (`.<name>.tmp-<pid>.<host>`) anywhere under `dir`.
 fn temporary_files(dir: &Path) -> Vec<PathBuf> {
     let mut found = Vec::new();
     let mut stack = vec![dir.to_path_buf()];
@@ -213,7 +213,7 @@ fn a_killed_render_resumes_to_the_uninterrupted_result() {
     for path in &leftovers {
         let name = path.file_name().unwrap().to_string_lossy();
         assert!(
-            name.starts_with('.') && name.ends_with(&format!(".tmp-{}", child.id())),
+            name.starts_with('.') && name.contains(&format!(".tmp-{}.", child.id())),
             "{name}"
         );
     }

@@ -315,7 +315,8 @@ impl Dynamics {
         let removed = simulation.open_store(out_dir, scene_name)?;
         Ok((!removed.is_empty()).then(|| {
             format!(
-                "removed stale simulation checkpoints (the scene or its assets changed): {}",
+                "removed the simulation checkpoints of older versions of this scene (unused, beyond the {} most recent): {}",
+                crate::sim::checkpoint::KEPT_VERSIONS,
                 removed
                     .iter()
                     .map(|p| p.display().to_string())

@@ -100,6 +100,27 @@ pub fn parse_size(text: &str) -> Result<(u32, u32), SnellError> {
     Ok((width, height))
 }
 
+/// `--frames`: a frame list (`N`, `A-B`, `A-BxS`, comma-separated, e.g. `1-48x4,50`), sorted and
+/// each frame once, checked against the timeline.
+pub fn parse_frame_list(text: &str, timeline: &Timeline) -> Result<Vec<u32>, SnellError> {
+    let frames = crate::timeline::parse_frame_list(text)
+        .map_err(|e| SnellError::Argument(format!("--frames {text:?}: {e}")))?;
+    let outside: Vec<u32> = frames
+        .iter()
+        .copied()
+        .filter(|frame| !timeline.contains(*frame))
+        .collect();
+    if !outside.is_empty() {
+        return Err(SnellError::Argument(format!(
+            "--frames {text:?}: frame(s) {} lie outside the scene's timeline, which runs from frame {} to {}; choose frames inside it",
+            resume::frame_list(&outside),
+            timeline.first_frame,
+            timeline.last_frame
+        )));
+    }
+    Ok(frames)
+}
+
 /// An inclusive range of frame numbers inside a scene's timeline.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct FrameRange {
@@ -783,13 +804,16 @@ impl RenderJob {
         write_png: bool,
         progress: bool,
     ) -> Result<RenderSummary, SnellError> {
+        let frames: Vec<u32> = range.frames().collect();
+        let output = crate::output::pattern::OutputPattern::for_scene(out_dir, &self.scene.name);
         let outcome = self.render_sequence(&resume::SequenceOptions {
-            range,
+            frames: &frames,
             width,
             height,
-            out_dir,
+            output: &output,
             write_png,
             progress,
+            log: resume::FrameLog::Quiet,
             resume: false,
             stop: None,
         })?;
@@ -957,6 +981,7 @@ fn write_frames(
     receiver: std::sync::mpsc::Receiver<FrameToWrite>,
     mut report: crate::output::report::ReportWriter,
     write_png: bool,
+    log: resume::FrameLog,
 ) -> Result<(), SnellError> {
     for mut job in receiver {
         let clock = Instant::now();
@@ -969,6 +994,9 @@ fn write_frames(
             .stage_secs
             .insert("write".to_string(), clock.elapsed().as_secs_f64());
         report.append(&job.report)?;
+        if let Some(line) = log.line(&job.path, &job.report) {
+            crate::outln!("{line}");
+        }
     }
     Ok(())
 }

@@ -14,26 +14,80 @@ use std::time::Instant;
 use rayon::prelude::*;
 
 use super::inputs::{InputHash, INPUT_HASH_ATTRIBUTE};
-use super::{FrameRange, FrameToWrite, RenderJob, SnellError, VertexTracking};
+use super::{FrameToWrite, RenderJob, SnellError, VertexTracking};
 use crate::draw::RenderedFrame;
 use crate::gpu::Renderer;
 use crate::output::report::ReportWriter;
 
 /// What [`RenderJob::render_sequence`] renders, where, and how it may be cut short.
 pub struct SequenceOptions<'a> {
-    pub range: FrameRange,
+    /// The frames to render, sorted, each once ([`super::parse_frame_list`]).
+    pub frames: &'a [u32],
     pub width: u32,
     pub height: u32,
-    pub out_dir: &'a Path,
+    /// Where each frame goes; its folder also holds the report and the checkpoints.
+    pub output: &'a crate::output::pattern::OutputPattern,
     /// Also write a tone-mapped PNG next to each EXR.
     pub write_png: bool,
     /// Show a progress bar.
     pub progress: bool,
+    /// A line on stdout per frame written (for farm logs).
+    pub log: FrameLog,
     /// Skip frames already complete from the same inputs.
     pub resume: bool,
     /// When set (by a signal handler), no new frame is started; the frame in flight is finished
     /// and written.
     pub stop: Option<&'a AtomicBool>,
+}
+
+/// What a render prints on stdout for each frame it has written.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum FrameLog {
+    /// Nothing (a terminal shows the progress bar instead).
+    #[default]
+    Quiet,
+    /// `frame 12: 0.84 s, <path>; vertices: ...; triangles: ...`.
+    Text,
+    /// The same as one JSON object per line.
+    Json,
+}
+
+impl FrameLog {
+    /// The line for a written frame (`report` carries its counts and seconds per stage, the
+    /// write included); None when quiet.
+    pub fn line(self, path: &Path, report: &crate::output::report::FrameReport) -> Option<String> {
+        let secs: f64 = report.stage_secs.values().sum();
+        match self {
+            FrameLog::Quiet => None,
+            FrameLog::Json => Some(
+                serde_json::json!({
+                    "frame": report.frame,
+                    "secs": (secs * 1000.0).round() / 1000.0,
+                    "path": path.display().to_string(),
+                    "counts": report.counts,
+                })
+                .to_string(),
+            ),
+            FrameLog::Text => {
+                let group = |name: &str| -> String {
+                    let counts = report.counts.get(name).and_then(|v| v.as_object());
+                    let items: Vec<String> = counts
+                        .into_iter()
+                        .flatten()
+                        .map(|(key, value)| format!("{key} {value}"))
+                        .collect();
+                    format!("{name}: {}", items.join(", "))
+                };
+                Some(format!(
+                    "frame {}: {secs:.2} s, {}; {}; {}",
+                    report.frame,
+                    path.display(),
+                    group("vertices"),
+                    group("triangles")
+                ))
+            }
+        }
+    }
 }
 
 /// Why a frame is rendered when resuming.
@@ -203,24 +257,21 @@ pub fn check_frame_file(path: &Path, frame: u32, expected: &InputHash) -> Result
     Ok(())
 }
 
-/// Sorts the frames of `range` in `out_dir` into complete (skip) and to render, checking the EXR
+/// Sorts `frames` in `out_dir` into complete (skip) and to render, checking the EXR
 /// files in parallel and each report row's hash.
 pub fn plan_resume(
     job: &RenderJob,
-    range: FrameRange,
+    frames: &[u32],
     width: u32,
     height: u32,
-    out_dir: &Path,
+    output: &crate::output::pattern::OutputPattern,
     report: &ReportWriter,
 ) -> ResumePlan {
     let expected = job.input_hash(width, height);
-    let frames: Vec<u32> = range.frames().collect();
+    let frames: Vec<u32> = frames.to_vec();
     let checks: Vec<Result<(), RenderReason>> = frames
         .par_iter()
-        .map(|&frame| {
-            let path = crate::output::exr::frame_path(out_dir, job.scene_name(), frame);
-            check_frame_file(&path, frame, &expected)
-        })
+        .map(|&frame| check_frame_file(&output.path(frame), frame, &expected))
         .collect();
     let mut plan = ResumePlan::default();
     for (frame, check) in frames.into_iter().zip(checks) {
@@ -253,7 +304,7 @@ fn paths_list(paths: &[PathBuf]) -> String {
 }
 
 impl RenderJob {
-    /// Renders `options.range` into `options.out_dir`: checks the folder can be written (exit 2
+    /// Renders `options.frames` into `options.out_dir`: checks the folder can be written (exit 2
     /// otherwise), removes temporary files that killed processes left there, skips complete frames
     /// when resuming, and stops early on a stop request. Each frame's EXR (and PNG) is written
     /// before its report row, each renamed into place whole.
@@ -262,16 +313,18 @@ impl RenderJob {
         options: &SequenceOptions<'_>,
     ) -> Result<SequenceOutcome, SnellError> {
         let SequenceOptions {
-            range,
+            frames,
             width,
             height,
-            out_dir,
+            output,
             write_png,
             progress,
+            log,
             resume,
             stop,
         } = *options;
         self.check_frame_resources(width, height)?;
+        let out_dir = output.dir();
         crate::output::ensure_output_dir(out_dir)?;
         crate::output::check_writable(out_dir)?;
         let stale =
@@ -287,7 +340,7 @@ impl RenderJob {
             note(&text);
         }
         let report = ReportWriter::create(out_dir)?;
-        let plan = resume.then(|| plan_resume(self, range, width, height, out_dir, &report));
+        let plan = resume.then(|| plan_resume(self, frames, width, height, output, &report));
         let (to_render, skipped): (Vec<u32>, Vec<u32>) = match &plan {
             Some(plan) => {
                 errln!("{}", plan.summary());
@@ -296,7 +349,7 @@ impl RenderJob {
                     plan.skip.clone(),
                 )
             }
-            None => (range.frames().collect(), Vec::new()),
+            None => (frames.to_vec(), Vec::new()),
         };
         let stop_requested = || stop.is_some_and(|flag| flag.load(Ordering::SeqCst));
         let mut rendered = Vec::new();
@@ -318,7 +371,8 @@ impl RenderJob {
             // appended only after its EXR is safely renamed into place.
             let (sender, receiver) = std::sync::mpsc::sync_channel::<FrameToWrite>(1);
             let written = std::thread::scope(|scope| {
-                let writer = scope.spawn(move || super::write_frames(receiver, report, write_png));
+                let writer =
+                    scope.spawn(move || super::write_frames(receiver, report, write_png, log));
                 let mut render_error = None;
                 // The tracking of the frame rendered last, for the next frame's popping test.
                 let mut last: Option<(u32, VertexTracking)> = None;
@@ -347,7 +401,7 @@ impl RenderJob {
                         }
                     };
                     let job = FrameToWrite {
-                        path: crate::output::exr::frame_path(out_dir, &self.scene.name, frame),
+                        path: output.path(frame),
                         meta: self.frame_meta(&refracted),
                         report: self.frame_report(&refracted, width, height),
                         rendered: frame_pixels,
@@ -415,6 +469,33 @@ impl RenderJob {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_frame_log_line_gives_frame_seconds_and_flag_counts() {
+        let report = crate::output::report::FrameReport {
+            frame: 12,
+            time_secs: 0.5,
+            convergence_policy: String::new(),
+            counts: serde_json::json!({ "vertices": { "convergence": 3, "popping": 1 }, "triangles": { "boundary": 2 } }),
+            stage_secs: [("render".to_string(), 0.5), ("write".to_string(), 0.25)].into(),
+            size: [64, 36],
+            method: "m".into(),
+            input_hash: None,
+            quality: None,
+        };
+        let path = Path::new("out/tiny.0012.exr");
+        assert_eq!(FrameLog::Quiet.line(path, &report), None);
+        assert_eq!(
+            FrameLog::Text.line(path, &report).unwrap(),
+            "frame 12: 0.75 s, out/tiny.0012.exr; vertices: convergence 3, popping 1; triangles: boundary 2"
+        );
+        let json: serde_json::Value =
+            serde_json::from_str(&FrameLog::Json.line(path, &report).unwrap()).unwrap();
+        assert_eq!(
+            json,
+            serde_json::json!({ "frame": 12, "secs": 0.75, "path": "out/tiny.0012.exr", "counts": report.counts })
+        );
+    }
 
     #[test]
     fn frame_lists_are_compact() {

@@ -3,6 +3,14 @@
 //! directory that already has a report replaces the rows of those frames and keeps the others.
 //! After every frame the whole file is rewritten atomically (temporary file, sync, rename), so an
 //! interrupted render leaves a complete report of the frames finished so far.
+//!
+//! Any number of processes may render into one folder at once (a farm's chunks): each update
+//! takes an exclusive lock on `DIR/.report.jsonl.lock`, reads the report as it is now, replaces
+//! its frame's row and renames the new file into place before unlocking, so no process's rows are
+//! lost. A locked rewrite rather than per-frame files or a bare append: the file stays one sorted
+//! row per frame (a re-rendered frame replaces its row), readers need no lock (they only ever see
+//! a whole renamed file), and the cost, a few hundred bytes a frame read and written once per
+//! frame, is nothing beside the frame's EXR.
 
 use std::collections::{BTreeMap, HashMap};
 use std::fs;
@@ -14,6 +22,9 @@ use serde::{Deserialize, Serialize};
 use super::{ensure_output_dir, write_atomically, OutputError};
 
 pub const REPORT_FILE_NAME: &str = "report.jsonl";
+/// The file every writer of the report locks while it updates it (never renamed, so the lock is
+/// on one file for everyone).
+pub const REPORT_LOCK_NAME: &str = ".report.jsonl.lock";
 
 /// One report row.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -80,36 +91,62 @@ impl ReportWriter {
         value.get("input_hash")?.as_str().map(str::to_string)
     }
 
-    /// Adds (or replaces) the row of `report.frame` and rewrites the file, flushed and synced.
+    /// Adds (or replaces) the row of `report.frame` and rewrites the file, flushed and synced,
+    /// under the report's lock and over the rows on disk now (other processes' included).
     pub fn append(&mut self, report: &FrameReport) -> Result<(), OutputError> {
-        let row = serde_json::to_string(report).map_err(|error| OutputError::Write {
+        let write_error = |cause: String| OutputError::Write {
             path: self.path.clone(),
-            cause: error.to_string(),
+            cause,
+        };
+        let row = serde_json::to_string(report).map_err(|error| write_error(error.to_string()))?;
+        let lock_path = self.path.with_file_name(REPORT_LOCK_NAME);
+        let lock = fs::OpenOptions::new()
+            .create(true)
+            .truncate(false)
+            .write(true)
+            .open(&lock_path)
+            .map_err(|error| {
+                write_error(format!(
+                    "cannot open the lock {}: {error}",
+                    lock_path.display()
+                ))
+            })?;
+        lock.lock().map_err(|error| {
+            write_error(format!("cannot lock {}: {error}", lock_path.display()))
         })?;
-        let previous = self.rows_by_frame.insert(report.frame, row);
-        let result = self.rewrite();
-        if result.is_err() {
-            // Keep memory consistent with the file that is still on disk.
-            match previous {
-                Some(previous) => self.rows_by_frame.insert(report.frame, previous),
-                None => self.rows_by_frame.remove(&report.frame),
-            };
+        // Under the lock: the rows other processes wrote since this one last looked.
+        let mut rows = match fs::read_to_string(&self.path) {
+            Ok(contents) => parse_rows(&self.path, &contents)?,
+            Err(error) if error.kind() == std::io::ErrorKind::NotFound => BTreeMap::new(),
+            Err(error) => {
+                return Err(OutputError::Read {
+                    path: self.path.clone(),
+                    cause: error.to_string(),
+                })
+            }
+        };
+        rows.insert(report.frame, row);
+        let result = write_rows(&self.path, &rows);
+        drop(lock); // unlocks
+        if result.is_ok() {
+            // Memory follows the file only once it is on disk.
+            self.rows_by_frame = rows;
         }
         result
     }
+}
 
-    fn rewrite(&self) -> Result<(), OutputError> {
-        write_atomically(&self.path, |file| {
-            let mut contents = String::new();
-            for row in self.rows_by_frame.values() {
-                contents.push_str(row);
-                contents.push('\n');
-            }
-            file.write_all(contents.as_bytes())
-                .map_err(|error| error.to_string())?;
-            file.flush().map_err(|error| error.to_string())
-        })
-    }
+fn write_rows(path: &Path, rows: &BTreeMap<u32, String>) -> Result<(), OutputError> {
+    write_atomically(path, |file| {
+        let mut contents = String::new();
+        for row in rows.values() {
+            contents.push_str(row);
+            contents.push('\n');
+        }
+        file.write_all(contents.as_bytes())
+            .map_err(|error| error.to_string())?;
+        file.flush().map_err(|error| error.to_string())
+    })
 }
 
 fn parse_rows(path: &Path, contents: &str) -> Result<BTreeMap<u32, String>, OutputError> {
@@ -181,13 +218,17 @@ mod tests {
             read_rows(&dir.join("report.jsonl")),
             vec![report(0, "geometric"), report(1, "geometric")]
         );
-        let names: Vec<_> = fs::read_dir(&dir)
+        let mut names: Vec<_> = fs::read_dir(&dir)
             .unwrap()
             .map(|e| e.unwrap().file_name())
             .collect();
+        names.sort();
         assert_eq!(
             names,
-            vec![std::ffi::OsString::from("report.jsonl")],
+            vec![
+                std::ffi::OsString::from(REPORT_LOCK_NAME),
+                std::ffi::OsString::from("report.jsonl")
+            ],
             "no temporary file left"
         );
     }
@@ -232,6 +273,31 @@ mod tests {
         assert_eq!(method(&lines[2]), "raytrace");
         assert_eq!(method(&lines[3]), "geometric");
         assert_eq!(lines[5], "{\"frame\":9,\"future_field\":true}");
+    }
+
+    /// Writers opened on one folder at once (as processes of a farm are) each update the report
+    /// on disk as it is then: every row of every writer is kept.
+    #[test]
+    fn writers_of_one_folder_at_once_lose_no_row() {
+        let temp = tempfile::tempdir().unwrap();
+        let dir = temp.path().to_path_buf();
+        std::thread::scope(|scope| {
+            for writer_index in 0..4u32 {
+                let dir = dir.clone();
+                scope.spawn(move || {
+                    // Opened before any other writer has written: its memory holds no rows.
+                    let mut writer = ReportWriter::create(&dir).unwrap();
+                    for frame in (0..10).map(|k| writer_index + 4 * k) {
+                        writer.append(&report(frame, "geometric")).unwrap();
+                    }
+                });
+            }
+        });
+        let frames: Vec<u32> = read_rows(&dir.join(REPORT_FILE_NAME))
+            .iter()
+            .map(|row| row.frame)
+            .collect();
+        assert_eq!(frames, (0..40).collect::<Vec<u32>>());
     }
 
     #[test]

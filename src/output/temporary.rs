@@ -1,7 +1,11 @@
 //! The temporary files every output is written under before its rename: their names
-//! (`.<file>.tmp-<pid>`, hidden, beside the destination), a registry of the ones this process has
-//! open so that an immediate stop (a second Ctrl-C) can remove them before exiting, and the
-//! clean-up of stale ones a killed process (SIGKILL, power loss) left behind.
+//! (`.<file>.tmp-<pid>.<host>`, hidden, beside the destination), a registry of the ones this
+//! process has open so that an immediate stop (a second Ctrl-C) can remove them before exiting,
+//! and the clean-up of stale ones a killed process (SIGKILL, power loss) left behind.
+//!
+//! The host is in the name because farm machines share output folders: a process id says nothing
+//! about a process on another machine, so another host's temporary file is removed only once it
+//! is older than [`FOREIGN_STALE_AFTER`] (no frame takes that long to write).
 
 use std::collections::BTreeSet;
 use std::fs::{self, File};
@@ -68,24 +72,94 @@ impl Registry {
 
 const MARKER: &str = ".tmp-";
 
-/// The temporary name `path` is written under: `.<file name>.tmp-<pid>` in the same directory (so
-/// the rename cannot cross file systems), unique per process.
+/// Another machine's temporary file older than this is taken as left by a killed process.
+pub const FOREIGN_STALE_AFTER: std::time::Duration = std::time::Duration::from_secs(24 * 3600);
+
+/// This machine's name as it appears in temporary names: letters, digits and `-` only (anything
+/// else becomes `-`), so the name parses back; `unknown` when it cannot be read.
+pub fn host_tag() -> &'static str {
+    static HOST: std::sync::OnceLock<String> = std::sync::OnceLock::new();
+    HOST.get_or_init(|| {
+        let name = read_host_name().unwrap_or_default();
+        // At most 64 characters (HOST_NAME_MAX), so names stay well under 255 bytes.
+        let tag: String = name
+            .chars()
+            .take(64)
+            .map(|c| if c.is_ascii_alphanumeric() { c } else { '-' })
+            .collect();
+        if tag.is_empty() {
+            "unknown".to_string()
+        } else {
+            tag
+        }
+    })
+}
+
+fn read_host_name() -> Option<String> {
+    #[cfg(unix)]
+    {
+        let mut buffer = [0u8; 256];
+        // SAFETY: the buffer is valid for its length; gethostname writes at most that many bytes.
+        let result = unsafe { libc::gethostname(buffer.as_mut_ptr().cast(), buffer.len()) };
+        if result != 0 {
+            return None;
+        }
+        let end = buffer.iter().position(|&b| b == 0).unwrap_or(buffer.len());
+        Some(String::from_utf8_lossy(&buffer[..end]).into_owned())
+    }
+    #[cfg(not(unix))]
+    {
+        std::env::var("COMPUTERNAME").ok()
+    }
+}
+
+/// The temporary name `path` is written under: `.<file name>.tmp-<pid>.<host>` in the same
+/// directory (so the rename cannot cross file systems), unique per process and machine.
 pub fn temporary_path_for(path: &Path) -> PathBuf {
     let file_name = path
         .file_name()
         .map(|name| name.to_string_lossy().into_owned())
         .unwrap_or_default();
-    path.with_file_name(format!(".{file_name}{MARKER}{}", std::process::id()))
+    path.with_file_name(format!(
+        ".{file_name}{MARKER}{}.{}",
+        std::process::id(),
+        host_tag()
+    ))
 }
 
-/// The process id in a temporary file's name, if `file_name` is one (`.<name>.tmp-<pid>`).
-pub fn temporary_owner_pid(file_name: &str) -> Option<u32> {
+/// Who wrote a temporary file: its process id and, for names of this version, its host.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct TemporaryOwner {
+    pub pid: u32,
+    /// None for names without a host (`.<name>.tmp-<pid>`, written by older versions): taken as
+    /// this machine's.
+    pub host: Option<String>,
+}
+
+/// The owner in a temporary file's name, if `file_name` is one (`.<name>.tmp-<pid>.<host>` or
+/// the older `.<name>.tmp-<pid>`).
+pub fn temporary_owner(file_name: &str) -> Option<TemporaryOwner> {
     let rest = file_name.strip_prefix('.')?;
-    let (name, pid) = rest.rsplit_once(MARKER)?;
-    if name.is_empty() || pid.is_empty() || !pid.bytes().all(|b| b.is_ascii_digit()) {
+    let (name, owner) = rest.rsplit_once(MARKER)?;
+    let (pid, host) = match owner.split_once('.') {
+        Some((pid, host)) => (pid, Some(host)),
+        None => (owner, None),
+    };
+    let host_ok = host.is_none_or(|host| {
+        !host.is_empty() && host.chars().all(|c| c.is_ascii_alphanumeric() || c == '-')
+    });
+    if name.is_empty() || pid.is_empty() || !pid.bytes().all(|b| b.is_ascii_digit()) || !host_ok {
         return None;
     }
-    pid.parse().ok()
+    Some(TemporaryOwner {
+        pid: pid.parse().ok()?,
+        host: host.map(str::to_string),
+    })
+}
+
+/// The process id in a temporary file's name, if `file_name` is one.
+pub fn temporary_owner_pid(file_name: &str) -> Option<u32> {
+    temporary_owner(file_name).map(|owner| owner.pid)
 }
 
 /// Creates (truncating) the temporary file `temporary` and registers it, so that
@@ -132,10 +206,24 @@ fn process_is_alive(pid: u32) -> bool {
     }
 }
 
+/// Whether the temporary file `path` (owned by `owner`) was left by a process that is gone: on
+/// this machine, its process is not running; from another machine (a farm's shared folder), it
+/// is older than [`FOREIGN_STALE_AFTER`].
+fn is_stale(path: &Path, owner: &TemporaryOwner) -> bool {
+    match &owner.host {
+        Some(host) if host != host_tag() => fs::metadata(path)
+            .and_then(|meta| meta.modified())
+            .ok()
+            .and_then(|modified| modified.elapsed().ok())
+            .is_some_and(|age| age > FOREIGN_STALE_AFTER),
+        _ => !process_is_alive(owner.pid),
+    }
+}
+
 /// Removes the temporary files of dead processes in `dir` and, one level down, in each folder of
 /// `dir/<nested>/` (the simulation checkpoints' folders); returns what it removed. A process id can
 /// be reused: a stale file whose id now belongs to a running process is kept (harmless: it is
-/// hidden and never read as a frame).
+/// hidden and never read as a frame). Another machine's files are judged by age ([`is_stale`]).
 pub fn remove_stale(dir: &Path, nested: &str) -> Vec<PathBuf> {
     let mut folders = vec![dir.to_path_buf()];
     if let Ok(entries) = fs::read_dir(dir.join(nested)) {
@@ -153,11 +241,11 @@ pub fn remove_stale(dir: &Path, nested: &str) -> Vec<PathBuf> {
         };
         for entry in entries.flatten() {
             let name = entry.file_name().to_string_lossy().into_owned();
-            let Some(pid) = temporary_owner_pid(&name) else {
+            let Some(owner) = temporary_owner(&name) else {
                 continue;
             };
             let is_file = entry.file_type().is_ok_and(|kind| kind.is_file());
-            if is_file && !process_is_alive(pid) && fs::remove_file(entry.path()).is_ok() {
+            if is_file && is_stale(&entry.path(), &owner) && fs::remove_file(entry.path()).is_ok() {
                 removed.push(entry.path());
             }
         }
@@ -174,8 +262,26 @@ mod tests {
     fn names_round_trip_and_frames_are_not_temporaries() {
         let path = temporary_path_for(Path::new("out/pool.0001.exr"));
         let name = path.file_name().unwrap().to_str().unwrap();
-        assert_eq!(name, format!(".pool.0001.exr.tmp-{}", std::process::id()));
-        assert_eq!(temporary_owner_pid(name), Some(std::process::id()));
+        assert_eq!(
+            name,
+            format!(".pool.0001.exr.tmp-{}.{}", std::process::id(), host_tag())
+        );
+        assert_eq!(
+            temporary_owner(name),
+            Some(TemporaryOwner {
+                pid: std::process::id(),
+                host: Some(host_tag().to_string())
+            })
+        );
+        // The older name without a host still parses (taken as this machine's).
+        assert_eq!(
+            temporary_owner(".pool.0001.exr.tmp-12"),
+            Some(TemporaryOwner {
+                pid: 12,
+                host: None
+            })
+        );
+        assert_eq!(temporary_owner_pid(".pool.0001.exr.tmp-12.a.b"), None);
         assert_eq!(temporary_owner_pid("pool.0001.exr"), None);
         assert_eq!(temporary_owner_pid(".pool.0001.exr.tmp-"), None);
         assert_eq!(temporary_owner_pid(".pool.0001.exr.tmp-12x"), None);
@@ -192,16 +298,53 @@ mod tests {
         fs::create_dir_all(&nested).unwrap();
         let dead = dir.path().join(format!(".pool.0002.exr.tmp-{DEAD_PID}"));
         let dead_nested = nested.join(format!(".ripples-000002.bin.tmp-{DEAD_PID}"));
+        let dead_here = dir
+            .path()
+            .join(format!(".pool.0004.exr.tmp-{DEAD_PID}.{}", host_tag()));
         let mine = temporary_path_for(&dir.path().join("pool.0003.exr"));
         let frame = dir.path().join("pool.0001.exr");
-        for path in [&dead, &dead_nested, &mine, &frame] {
+        // Another machine's files: a pid there says nothing here; only age counts.
+        let foreign_fresh = dir.path().join(format!(
+            ".pool.0005.exr.tmp-{DEAD_PID}.elsewhere-{}",
+            host_tag()
+        ));
+        let foreign_old = dir.path().join(format!(
+            ".pool.0006.exr.tmp-{DEAD_PID}.elsewhere-{}",
+            host_tag()
+        ));
+        for path in [
+            &dead,
+            &dead_nested,
+            &dead_here,
+            &mine,
+            &frame,
+            &foreign_fresh,
+            &foreign_old,
+        ] {
             fs::write(path, b"x").unwrap();
         }
+        let old =
+            std::time::SystemTime::now() - FOREIGN_STALE_AFTER - std::time::Duration::from_secs(60);
+        File::options()
+            .write(true)
+            .open(&foreign_old)
+            .unwrap()
+            .set_modified(old)
+            .unwrap();
         let removed = remove_stale(dir.path(), ".sim");
-        let mut expected = vec![dead.clone(), dead_nested.clone()];
+        let mut expected = vec![
+            dead.clone(),
+            dead_nested.clone(),
+            dead_here.clone(),
+            foreign_old.clone(),
+        ];
         expected.sort();
         assert_eq!(removed, expected);
         assert!(mine.exists(), "this process is alive: its file stays");
+        assert!(
+            foreign_fresh.exists(),
+            "a fresh file of another machine may be written now: it stays"
+        );
         assert!(frame.exists());
         assert!(!dead.exists() && !dead_nested.exists());
     }

@@ -148,8 +148,8 @@ fn quality(raw: &RawScene, map: &SourceMap<'_>) -> Result<QualitySpec> {
     Ok(QualitySpec { max_error_px })
 }
 
-/// The longest scene name, in bytes: output names add at most 32 more (`.<name>.0001.exr.tmp-<pid>`)
-/// and must stay under the 255 bytes file systems allow.
+/// The longest scene name, in bytes: output names add at most 96 more
+/// (`.<name>.0001.exr.tmp-<pid>.<host>`, the host at most 64) and must stay under the 255 bytes file systems allow.
 pub(crate) const MAX_NAME_BYTES: usize = 100;
 
 /// Why `name` cannot name output files, if it cannot.

@@ -4,8 +4,13 @@
 //!
 //! A checkpoint is used only when its folder's key, its own header key, frame and grid size all
 //! match and its trailing hash checks, so a stale one (the scene or an asset changed) or a torn one
-//! is never read; stale folders of the same scene are deleted when the store opens. Files are
-//! written to a temporary name and renamed, so a crash leaves whole checkpoints or none.
+//! is never read. Files are written to a temporary name and renamed, so a crash leaves whole
+//! checkpoints or none, and processes rendering one version of a scene share its folder.
+//!
+//! Several versions of a scene may be rendered into one folder at once (an edited scene beside
+//! the original, on a farm): each store holds a shared lock on its folder's `.lock` file while it
+//! is open. When a store opens, the [`KEPT_VERSIONS`] most recently opened versions of the scene
+//! are kept; an older one is removed only when no process holds its lock.
 
 use std::fs;
 use std::io::Write;
@@ -19,6 +24,11 @@ const MAGIC: &[u8; 8] = b"SNELLRIP";
 const FORMAT_VERSION: u32 = 1;
 /// The folder, under the output folder, that holds every scene's checkpoints.
 pub const CHECKPOINT_DIR: &str = ".snell-sim";
+/// How many versions of one scene keep their checkpoints (the most recently opened ones).
+pub const KEPT_VERSIONS: usize = 4;
+/// In each version's folder: locked (shared) by every process using it; its modification time
+/// says when the version was last opened.
+const LOCK_FILE: &str = ".lock";
 
 /// The inputs a simulation depends on, hashed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -81,13 +91,82 @@ impl CheckpointError {
 pub struct CheckpointStore {
     dir: PathBuf,
     key: CheckpointKey,
-    /// Stale folders of the same scene removed when the store opened.
+    /// Folders of older versions of the same scene removed when the store opened.
     pub removed_stale: Vec<PathBuf>,
+    /// Held (shared) while the store is open, so no other process removes the folder.
+    _lock: fs::File,
+}
+
+/// Opens `dir/.lock` (creating `dir`) and holds a shared lock on it, marking the version as just
+/// used. Retries when the folder was removed while this process waited for the lock.
+fn lock_folder(dir: &Path) -> Result<fs::File, CheckpointError> {
+    let create_error = |source| CheckpointError::CreateDir {
+        path: dir.to_path_buf(),
+        source,
+    };
+    loop {
+        fs::create_dir_all(dir).map_err(create_error)?;
+        let path = dir.join(LOCK_FILE);
+        let file = fs::OpenOptions::new()
+            .create(true)
+            .truncate(false)
+            .write(true)
+            .open(&path)
+            .map_err(create_error)?;
+        file.lock_shared().map_err(create_error)?;
+        // A remover holds the lock exclusively while it moves the folder away: if it did, this
+        // lock is on a file no longer at `path`. Then start again with a new folder.
+        if same_file(&file, &path) {
+            let _ = file.set_modified(std::time::SystemTime::now());
+            return Ok(file);
+        }
+    }
+}
+
+#[cfg(unix)]
+fn same_file(file: &fs::File, path: &Path) -> bool {
+    use std::os::unix::fs::MetadataExt;
+    match (file.metadata(), fs::metadata(path)) {
+        (Ok(held), Ok(there)) => held.dev() == there.dev() && held.ino() == there.ino(),
+        _ => false,
+    }
+}
+
+#[cfg(not(unix))]
+fn same_file(_file: &fs::File, path: &Path) -> bool {
+    path.is_file()
+}
+
+/// Removes the version folder `dir` if no process holds its lock: locks it exclusively (without
+/// waiting), moves it to a hidden name and deletes that. Whether it was removed.
+fn remove_unused_version(root: &Path, dir: &Path) -> bool {
+    let Ok(file) = fs::OpenOptions::new().write(true).open(dir.join(LOCK_FILE)) else {
+        // A folder without a lock file is from a version before locks; nobody can hold it.
+        return remove_moved(root, dir);
+    };
+    if file.try_lock().is_err() {
+        return false; // in use
+    }
+    remove_moved(root, dir)
+}
+
+fn remove_moved(root: &Path, dir: &Path) -> bool {
+    let name = dir
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let trash = crate::output::temporary::temporary_path_for(&root.join(name));
+    if fs::rename(dir, &trash).is_err() {
+        return false;
+    }
+    fs::remove_dir_all(&trash).is_ok()
 }
 
 impl CheckpointStore {
-    /// Opens (creating) `<out_dir>/.snell-sim/<scene_stem>-<key>/`, deleting any other folder of
-    /// the same scene stem there: those belong to an older version of the scene or its assets.
+    /// Opens (creating) `<out_dir>/.snell-sim/<scene_stem>-<key>/` and holds its lock. Of the
+    /// other folders of the same scene stem (other versions of the scene or its assets), keeps
+    /// the [`KEPT_VERSIONS`] - 1 most recently opened and those another process has open, and
+    /// removes the rest.
     pub fn open(
         out_dir: &Path,
         scene_stem: &str,
@@ -96,26 +175,39 @@ impl CheckpointStore {
         let root = out_dir.join(CHECKPOINT_DIR);
         let name = format!("{scene_stem}-{}", &key.hex()[..32]);
         let dir = root.join(&name);
-        fs::create_dir_all(&dir).map_err(|source| CheckpointError::CreateDir {
-            path: dir.clone(),
-            source,
-        })?;
-        let mut removed_stale = Vec::new();
-        if let Ok(entries) = fs::read_dir(&root) {
-            for entry in entries.flatten() {
+        let lock = lock_folder(&dir)?;
+        let mut others: Vec<(std::time::SystemTime, PathBuf)> = fs::read_dir(&root)
+            .into_iter()
+            .flatten()
+            .flatten()
+            .filter(|entry| {
                 let other = entry.file_name().to_string_lossy().to_string();
                 let same_scene = other
                     .rsplit_once('-')
                     .is_some_and(|(stem, hash)| stem == scene_stem && hash.len() == 32);
-                if same_scene && other != name && fs::remove_dir_all(entry.path()).is_ok() {
-                    removed_stale.push(entry.path());
-                }
-            }
-        }
+                same_scene && other != name && entry.path().is_dir()
+            })
+            .map(|entry| {
+                let used = fs::metadata(entry.path().join(LOCK_FILE))
+                    .or_else(|_| entry.metadata())
+                    .and_then(|meta| meta.modified())
+                    .unwrap_or(std::time::UNIX_EPOCH);
+                (used, entry.path())
+            })
+            .collect();
+        // Most recently used first; the oldest beyond the kept ones go, unless in use.
+        others.sort_by(|a, b| b.cmp(a));
+        let removed_stale = others
+            .into_iter()
+            .skip(KEPT_VERSIONS - 1)
+            .filter(|(_, path)| remove_unused_version(&root, path))
+            .map(|(_, path)| path)
+            .collect();
         Ok(CheckpointStore {
             dir,
             key,
             removed_stale,
+            _lock: lock,
         })
     }
 
@@ -291,20 +383,42 @@ mod tests {
         assert!(store.load(12, &settings()).is_some());
     }
 
+    /// Versions of a scene open at once keep their folders; once closed, only the most
+    /// recently opened ones are kept, and other scenes' folders are never touched.
     #[test]
-    fn a_changed_key_opens_a_new_folder_and_deletes_the_stale_one() {
+    fn versions_in_use_are_kept_and_only_the_oldest_unused_go() {
         let dir = tempfile::tempdir().unwrap();
-        let old = CheckpointStore::open(dir.path(), "pool", key("a")).unwrap();
-        old.save(5, &RippleState::calm(settings())).unwrap();
+        let calm = RippleState::calm(settings());
         let other_scene = CheckpointStore::open(dir.path(), "fox", key("a")).unwrap();
-        other_scene.save(5, &RippleState::calm(settings())).unwrap();
-        let new = CheckpointStore::open(dir.path(), "pool", key("b")).unwrap();
-        assert_eq!(new.removed_stale, vec![old.dir().to_path_buf()]);
-        assert!(!old.dir().exists());
+        other_scene.save(5, &calm).unwrap();
+        let other_scene_dir = other_scene.dir().to_path_buf();
+        drop(other_scene);
+        // The first version stays open (another process rendering it) through all the others.
+        let held = CheckpointStore::open(dir.path(), "pool", key("held")).unwrap();
+        held.save(5, &calm).unwrap();
+        let mut closed = Vec::new();
+        for version in ["v1", "v2", "v3", "v4", "v5"] {
+            let store = CheckpointStore::open(dir.path(), "pool", key(version)).unwrap();
+            store.save(5, &calm).unwrap();
+            closed.push(store.dir().to_path_buf());
+            // Opened in this order: modification times must differ.
+            std::thread::sleep(std::time::Duration::from_millis(20));
+        }
+        assert!(held.dir().exists(), "a version in use is never removed");
+        assert_eq!(held.latest_in(1..=10, &settings()).map(|(f, _)| f), Some(5));
         assert!(
-            other_scene.dir().exists(),
+            other_scene_dir.exists(),
             "other scenes' checkpoints are kept"
         );
-        assert_eq!(new.latest_in(1..=10, &settings()), None);
+        // v5 was opened last: v2-v4 are its KEPT_VERSIONS - 1 most recent others besides the held
+        // one; v1 went when v5 opened (v1 closed, older than the three before it).
+        let present: Vec<bool> = closed.iter().map(|path| path.exists()).collect();
+        assert_eq!(present, [false, true, true, true, true]);
+        // Nothing half-removed is left behind.
+        let names: Vec<String> = fs::read_dir(dir.path().join(CHECKPOINT_DIR))
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        assert!(names.iter().all(|n| !n.contains(".tmp-")), "{names:?}");
     }
 }

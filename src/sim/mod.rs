@@ -82,7 +82,7 @@ impl Simulation {
     }
 
     /// Reads and writes checkpoints under `out_dir` from now on (see [`CheckpointStore::open`]);
-    /// returns the stale folders of `scene_stem` it deleted. A simulation keeps the first store
+    /// returns the folders of older versions of `scene_stem` it deleted. A simulation keeps the first store
     /// it opens: later calls do nothing.
     pub fn open_store(
         &self,

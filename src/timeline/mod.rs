@@ -30,7 +30,7 @@ pub struct CameraKey {
 /// A `--frames` value that is not a frame range, or a range outside the scene's timeline.
 #[derive(Debug, thiserror::Error, PartialEq, Eq)]
 pub enum FrameRangeError {
-    #[error("frame range {input:?}: {reason}; write a frame \"N\" or a range \"A-B\" with A <= B, e.g. \"0-47\"")]
+    #[error("frame range {input:?}: {reason}; write a frame \"N\" or a range \"A-B\" with A <= B, e.g. \"0-47\" (a list takes commas and steps, e.g. \"1-48x4,50\")")]
     Malformed { input: String, reason: String },
     #[error(
         "frames {first}-{last} are outside the scene's timeline {timeline_first}-{timeline_last}"
@@ -76,6 +76,59 @@ pub fn parse_frame_range(input: &str) -> Result<(u32, u32), FrameRangeError> {
     Ok((first, last))
 }
 
+/// Parses a frame list: items separated by commas, each a frame `N`, a range `A-B` or a range
+/// with a step `A-BxS` (A, A+S, ... up to B), e.g. `1-48x4,50`. Returns the frames sorted, each
+/// once. An error names the item at fault and what is wrong with it.
+pub fn parse_frame_list(input: &str) -> Result<Vec<u32>, FrameRangeError> {
+    let malformed = |reason: String| FrameRangeError::Malformed {
+        input: input.to_string(),
+        reason,
+    };
+    let mut frames = Vec::new();
+    for (index, item) in input.split(',').enumerate() {
+        let item = item.trim();
+        let which = if input.contains(',') {
+            format!("item {} ({item:?})", index + 1)
+        } else {
+            format!("{item:?}")
+        };
+        if item.is_empty() {
+            return Err(malformed(format!(
+                "item {} is empty (two commas in a row, or one at an end)",
+                index + 1
+            )));
+        }
+        let (range, step) = match item.split_once('x') {
+            Some((range, step)) => {
+                let step = step.trim();
+                let step: u32 = step.parse().map_err(|_| {
+                    malformed(format!(
+                        "{which}: the step {step:?} after `x` is not a whole number of frames"
+                    ))
+                })?;
+                if step == 0 {
+                    return Err(malformed(format!("{which}: the step must be at least 1")));
+                }
+                if !range.contains('-') {
+                    return Err(malformed(format!(
+                        "{which}: a step needs a range before it, as in 1-48x4"
+                    )));
+                }
+                (range, step)
+            }
+            None => (item, 1),
+        };
+        let (first, last) = parse_frame_range(range).map_err(|error| match error {
+            FrameRangeError::Malformed { reason, .. } => malformed(format!("{which}: {reason}")),
+            other => other,
+        })?;
+        frames.extend((first..=last).step_by(step as usize));
+    }
+    frames.sort_unstable();
+    frames.dedup();
+    Ok(frames)
+}
+
 impl Timeline {
     /// Seconds from the first frame to `frame` (negative before it).
     pub fn time_secs(&self, frame: u32) -> f64 {
@@ -117,6 +170,36 @@ impl Timeline {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn frame_lists_take_ranges_steps_and_single_frames() {
+        assert_eq!(parse_frame_list("1-48x4,50").unwrap(), {
+            let mut expected: Vec<u32> = (1..=45).step_by(4).collect();
+            expected.push(50);
+            expected
+        });
+        assert_eq!(parse_frame_list("7").unwrap(), vec![7]);
+        assert_eq!(parse_frame_list("3-5").unwrap(), vec![3, 4, 5]);
+        assert_eq!(parse_frame_list(" 9, 1-3 ,2").unwrap(), vec![1, 2, 3, 9]);
+        assert_eq!(parse_frame_list("1-10x3").unwrap(), vec![1, 4, 7, 10]);
+        assert_eq!(parse_frame_list("1-2x5").unwrap(), vec![1]);
+        let message = |input: &str| parse_frame_list(input).unwrap_err().to_string();
+        assert!(
+            message("1,,3").contains("item 2 is empty"),
+            "{}",
+            message("1,,3")
+        );
+        assert!(message("1-9x0").contains("\"1-9x0\": the step must be at least 1"));
+        assert!(message("1-9x").contains("the step \"\" after `x` is not a whole number"));
+        assert!(message("4x2").contains("a step needs a range before it"));
+        assert!(
+            message("1,5-3")
+                .contains("item 2 (\"5-3\"): the first frame 5 comes after the last frame 3"),
+            "{}",
+            message("1,5-3")
+        );
+        assert!(message("1,a").contains("item 2 (\"a\"): the frame \"a\" is not a frame number"));
+    }
 
     #[test]
     fn frames_map_to_seconds_from_the_first_frame() {

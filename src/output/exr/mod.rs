@@ -174,7 +174,7 @@ impl FrameMeta {
 
 /// `DIR/<scene>.<frame, at least 4 digits>.exr`.
 pub fn frame_path(dir: &Path, scene_name: &str, frame: u32) -> PathBuf {
-    dir.join(format!("{scene_name}.{frame:04}.exr"))
+    crate::output::pattern::OutputPattern::for_scene(dir, scene_name).path(frame)
 }
 
 /// Checks that every layer holds one value per pixel; the optional layers may be empty (a frame
