@@ -209,7 +209,12 @@ fn render_writes_frames_and_report() {
     // The report's lock file (farm-safe updates, tests/farm.rs) is the only hidden file.
     assert_eq!(
         names,
-        [".report.jsonl.lock", "report.jsonl", "tiny.0002.exr", "tiny.0003.exr"]
+        [
+            ".report.jsonl.lock",
+            "report.jsonl",
+            "tiny.0002.exr",
+            "tiny.0003.exr"
+        ]
     );
     let report = std::fs::read_to_string(out.join("report.jsonl")).unwrap();
     let rows: Vec<serde_json::Value> = report

@@ -6,6 +6,7 @@
 
 pub mod compare;
 pub mod exr;
+pub mod lock;
 pub mod pattern;
 pub mod position_error;
 pub mod report;

@@ -111,7 +111,7 @@ impl ReportWriter {
                     lock_path.display()
                 ))
             })?;
-        lock.lock().map_err(|error| {
+        super::lock::lock(&lock, super::lock::Lock::Exclusive).map_err(|error| {
             write_error(format!("cannot lock {}: {error}", lock_path.display()))
         })?;
         // Under the lock: the rows other processes wrote since this one last looked.

@@ -113,7 +113,8 @@ fn lock_folder(dir: &Path) -> Result<fs::File, CheckpointError> {
             .write(true)
             .open(&path)
             .map_err(create_error)?;
-        file.lock_shared().map_err(create_error)?;
+        crate::output::lock::lock(&file, crate::output::lock::Lock::Shared)
+            .map_err(create_error)?;
         // A remover holds the lock exclusively while it moves the folder away: if it did, this
         // lock is on a file no longer at `path`. Then start again with a new folder.
         if same_file(&file, &path) {
@@ -144,7 +145,7 @@ fn remove_unused_version(root: &Path, dir: &Path) -> bool {
         // A folder without a lock file is from a version before locks; nobody can hold it.
         return remove_moved(root, dir);
     };
-    if file.try_lock().is_err() {
+    if crate::output::lock::lock(&file, crate::output::lock::Lock::TryExclusive).is_err() {
         return false; // in use
     }
     remove_moved(root, dir)
