@@ -6,7 +6,7 @@ struct Frame {
     world_from_clip: mat4x4<f32>,
     // xyz: eye position in world space.
     eye: vec4<f32>,
-    // x, y: target size in pixels.
+    // x, y: the frame's size in pixels; w: the first row drawn (a strip's; 0 for a whole frame).
     viewport: vec4<f32>,
     sky_zenith: vec4<f32>,
     sky_horizon: vec4<f32>,
@@ -84,8 +84,11 @@ fn full_screen_position(vertex_index: u32, z: f32) -> vec4<f32> {
 }
 
 // Unit sight ray through a fragment's pixel coordinates, as `Camera::ray_through_pixel` computes it.
+// A strip's fragments are at rows of the strip: `viewport.w` (its first row; 0 for a whole frame)
+// makes them rows of the frame (`viewport.xy`).
 fn ray_through_pixel(pixel: vec2<f32>) -> vec3<f32> {
-    let ndc = vec2<f32>(pixel.x / frame.viewport.x * 2.0 - 1.0, 1.0 - pixel.y / frame.viewport.y * 2.0);
+    let row = pixel.y + frame.viewport.w;
+    let ndc = vec2<f32>(pixel.x / frame.viewport.x * 2.0 - 1.0, 1.0 - row / frame.viewport.y * 2.0);
     let far = frame.world_from_clip * vec4<f32>(ndc, 1.0, 1.0);
     return normalize(far.xyz / far.w - frame.eye.xyz);
 }

@@ -163,6 +163,36 @@ impl RenderedFrame {
     pub fn pixel_count(&self) -> usize {
         self.width as usize * self.height as usize
     }
+
+    /// The frame made of `strips` (bands of rows of one width, top first), one under the other.
+    pub fn stacked(strips: Vec<RenderedFrame>) -> RenderedFrame {
+        let width = strips.first().map_or(0, |strip| strip.width);
+        let mut frame = RenderedFrame {
+            width,
+            height: 0,
+            beauty_rgba: Vec::new(),
+            depth_m: Vec::new(),
+            apparent_depth_m: Vec::new(),
+            position: Vec::new(),
+            flags: Vec::new(),
+            object: Vec::new(),
+            water_matte: Vec::new(),
+            water_reflection: Vec::new(),
+        };
+        for strip in strips {
+            debug_assert_eq!(strip.width, width, "strips of one frame have one width");
+            frame.height += strip.height;
+            frame.beauty_rgba.extend(strip.beauty_rgba);
+            frame.depth_m.extend(strip.depth_m);
+            frame.apparent_depth_m.extend(strip.apparent_depth_m);
+            frame.position.extend(strip.position);
+            frame.flags.extend(strip.flags);
+            frame.object.extend(strip.object);
+            frame.water_matte.extend(strip.water_matte);
+            frame.water_reflection.extend(strip.water_reflection);
+        }
+        frame
+    }
 }
 
 /// [`RenderedFrame::object`] where no object is seen.

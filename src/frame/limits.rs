@@ -1,8 +1,7 @@
 //! The frame stage's part of the resource estimate (see [`crate::scene::resources`]): the loaded
 //! characters (posed vertices, how far they reach, materials), the textures, the ripple work of a
 //! frame, and the image size of a render, each checked against its stated limit before the work
-//! starts. Also the check of each frame's posed characters (finite, inside the world) and of the
-//! largest image the GPU stage can read back.
+//! starts. Also the check of each frame's posed characters (finite, inside the world).
 
 use super::characters::Character;
 use super::{Method, SnellError};
@@ -10,42 +9,6 @@ use crate::mesh::{Object, Texture};
 use crate::scene::limits::GEOMETRY_LIMIT_M;
 use crate::scene::resources::{self, human_bytes, Estimate, MAX_OBJECTS, MEMORY_LIMIT_VARIABLE};
 use crate::scene::Scene;
-
-/// Bytes the GPU stage reads back per pixel: beauty (float32 RGBA), position (float32 RGBA) and
-/// flags (u32), one buffer for the whole frame.
-const READBACK_BYTES_PER_PIXEL: u64 = 16 + 16 + 4;
-
-/// The largest readback buffer the renderer asks the device for (wgpu's default
-/// `max_buffer_size`, which the renderer keeps).
-fn max_readback_bytes() -> u64 {
-    wgpu::Limits::default().max_buffer_size
-}
-
-/// A frame of `width` x `height` must fit the GPU stage's single readback buffer: until frames
-/// render in strips, a larger one is refused here (exit 2), before any work, instead of failing
-/// inside the driver. The ray-traced methods read nothing back and take any size.
-pub fn check_image_size(method: Method, width: u32, height: u32) -> Result<(), SnellError> {
-    if !method.uses_gpu() {
-        return Ok(());
-    }
-    let pixels = width as u64 * height as u64;
-    let max = max_readback_bytes();
-    if pixels * READBACK_BYTES_PER_PIXEL <= max {
-        return Ok(());
-    }
-    let max_pixels = max / READBACK_BYTES_PER_PIXEL;
-    // The largest 16:9 image within it, for the suggestion.
-    let max_height = ((max_pixels as f64 * 9.0 / 16.0).sqrt().floor() as u64 / 2 * 2).max(2);
-    let max_width = max_height * 16 / 9 / 2 * 2;
-    Err(SnellError::Argument(format!(
-        "--size {width}x{height}: a frame of {pixels} pixels needs {} of GPU readback \
-         ({READBACK_BYTES_PER_PIXEL} bytes a pixel), and the renderer reads a frame back in one \
-         buffer of at most {}, so at most {max_pixels} pixels; choose a smaller size, e.g. \
-         --size {max_width}x{max_height}, or --method raytrace (no readback)",
-        human_bytes(pixels * READBACK_BYTES_PER_PIXEL),
-        human_bytes(max),
-    )))
-}
 
 /// The scene's estimate with the loaded characters and the textures added, checked: vertex
 /// count, reach and material count of each character (the ripple grid is bounded by its node
@@ -121,17 +84,19 @@ pub fn check_loaded(
     Ok(estimate)
 }
 
-/// The whole estimate of a frame at `width` x `height` against the memory limit, and the GPU's
-/// readback limit: both before any frame is made.
+/// The whole estimate of a frame at `width` x `height` by `method` against the memory limit,
+/// before any frame is made. The GPU methods draw, read back and write a large frame in strips
+/// ([`crate::gpu::Renderer::render_strips`]), so their pixels cost a bounded strip plus a little
+/// per pixel of the frame; the ray-traced methods hold the whole frame.
 pub fn check_frame(
     estimate: &Estimate,
     method: Method,
     width: u32,
     height: u32,
 ) -> Result<Estimate, SnellError> {
-    check_image_size(method, width, height)?;
     let mut estimate = *estimate;
     estimate.pixels = width as u64 * height as u64;
+    estimate.in_strips = method.uses_gpu();
     let limit = resources::memory_limit().map_err(SnellError::Argument)?;
     if estimate.bytes() > limit {
         return Err(SnellError::Argument(format!(

@@ -10,6 +10,7 @@ pub mod inputs;
 pub mod limits;
 pub mod resume;
 pub mod traced;
+mod writer;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -361,6 +362,10 @@ pub struct RenderJob {
     /// How frames are stored (`--half`, `--compression`); part of the input hash when not the
     /// default, so `--resume` renders again frames stored otherwise.
     pub write: crate::output::exr::WriteOptions,
+    /// Rows of the strips [`Self::render_sequence`] draws frames in ([`Renderer::set_strip_rows`]);
+    /// `None`: whole frames when they fit one readback, strips otherwise. Strips give the same
+    /// pixels; forcing them is for tests and measurements (`--strip-rows`).
+    pub strip_rows: Option<u32>,
     /// Heights the refraction search must cover for the static objects (characters and ripples
     /// widen it per frame).
     query_y_range: (f32, f32),
@@ -423,6 +428,7 @@ impl RenderJob {
             quality_choice: None,
             stamp: HeaderStamp::default(),
             write: Default::default(),
+            strip_rows: None,
             query_y_range: (bottom, top),
             traced_textures: std::sync::OnceLock::new(),
             scene_files,
@@ -731,9 +737,59 @@ impl RenderJob {
         width: u32,
         height: u32,
     ) -> Result<RenderedFrame, SnellError> {
+        let mut strips = Vec::new();
+        self.render_strips_caught(renderer, refracted, width, height, &mut |_, strip| {
+            strips.push(strip);
+            Ok(())
+        })?;
+        Ok(match strips.len() {
+            1 => strips.pop().expect("one strip"),
+            _ => RenderedFrame::stacked(strips),
+        })
+    }
+
+    /// Renders one frame as [`Self::render_refracted`] does, but gives it to `sink` strip by
+    /// strip (bands of rows, top first, each with the frame row it starts at) as the GPU reads
+    /// them back ([`Renderer::render_strips`]), so that the whole frame is never held. A frame
+    /// small enough to read back at once, and every ray-traced one, comes as a single strip.
+    /// The `render` stage time leaves out the time spent in `sink`.
+    pub fn render_refracted_strips<'r>(
+        &self,
+        renderer: impl Into<Option<&'r mut Renderer>>,
+        refracted: &mut RefractedFrame,
+        width: u32,
+        height: u32,
+        sink: &mut dyn FnMut(u32, RenderedFrame) -> Result<(), SnellError>,
+    ) -> Result<(), SnellError> {
+        let frame = refracted.frame;
+        let renderer = renderer.into();
+        catch_frame(frame, || {
+            self.render_strips_caught(renderer, refracted, width, height, sink)
+        })
+    }
+
+    fn render_strips_caught(
+        &self,
+        renderer: Option<&mut Renderer>,
+        refracted: &mut RefractedFrame,
+        width: u32,
+        height: u32,
+        sink: &mut dyn FnMut(u32, RenderedFrame) -> Result<(), SnellError>,
+    ) -> Result<(), SnellError> {
         let clock = Instant::now();
-        let rendered = if refracted.trace.is_some() {
-            self.trace_refracted(refracted, width, height)?.rendered
+        let mut in_sink = 0.0;
+        let ids = self.object_ids();
+        let frame = refracted.frame;
+        let mut finish_strip = |first_row: u32, strip: RenderedFrame| {
+            let strip = checked_strip(frame, &ids, first_row, strip)?;
+            let entered = Instant::now();
+            let given = sink(first_row, strip);
+            in_sink += entered.elapsed().as_secs_f64();
+            given
+        };
+        if refracted.trace.is_some() {
+            let rendered = self.trace_refracted(refracted, width, height)?.rendered;
+            finish_strip(0, rendered)?;
         } else {
             let renderer = renderer.ok_or_else(|| {
                 SnellError::Argument(format!(
@@ -741,36 +797,19 @@ impl RenderJob {
                     self.method.name()
                 ))
             })?;
-            renderer.render(&refracted.draw, &refracted.view, width, height)?
-        };
-        let mut rendered = rendered;
-        // The GPU and the tracer give the frame's object (material) index + 1.
-        let ids = self.object_ids();
-        for object in &mut rendered.object {
-            if *object != crate::draw::NO_OBJECT {
-                *object = ids.get(*object as usize - 1).copied().ok_or_else(|| {
-                    SnellError::Argument(format!(
-                        "frame {}: object index {} is not one of the {} objects drawn",
-                        refracted.frame,
-                        *object - 1,
-                        ids.len()
-                    ))
-                })?;
-            }
+            renderer.render_strips(
+                &refracted.draw,
+                &refracted.view,
+                width,
+                height,
+                &mut finish_strip,
+            )?;
         }
-        refracted
-            .stage_secs
-            .insert("render".to_string(), clock.elapsed().as_secs_f64());
-        if let Some((x, y, layer, value)) = finite::first_non_finite(&rendered) {
-            return Err(SnellError::NonFinite {
-                frame: refracted.frame,
-                x,
-                y,
-                layer,
-                value,
-            });
-        }
-        Ok(rendered)
+        refracted.stage_secs.insert(
+            "render".to_string(),
+            (clock.elapsed().as_secs_f64() - in_sink).max(0.0),
+        );
+        Ok(())
     }
 
     pub fn upload_textures(&self, renderer: &mut Renderer) -> Result<(), SnellError> {
@@ -966,41 +1005,39 @@ fn catch_frame<T>(
     })
 }
 
-/// The scene file's wave (direction in degrees) as the water stage's wave (unit direction).
-/// A rendered frame on its way to disk.
-struct FrameToWrite {
-    path: PathBuf,
-    rendered: RenderedFrame,
-    meta: crate::output::exr::FrameMeta,
-    report: crate::output::report::FrameReport,
-}
-
-/// The writer thread of [`RenderJob::render_to_dir`]: EXR (atomic), optional PNG, then the report row
-/// with the write time filled in. Stops at the first error.
-fn write_frames(
-    receiver: std::sync::mpsc::Receiver<FrameToWrite>,
-    mut report: crate::output::report::ReportWriter,
-    write_png: bool,
-    log: resume::FrameLog,
-) -> Result<(), SnellError> {
-    for mut job in receiver {
-        let clock = Instant::now();
-        crate::output::exr::write_frame_exr(&job.path, &job.rendered, &job.meta)?;
-        if write_png {
-            let png = crate::output::tonemap::tonemap_srgb8(&job.rendered, 0.0);
-            crate::output::tonemap::save_png_atomic(&job.path.with_extension("png"), &png)?;
-        }
-        job.report
-            .stage_secs
-            .insert("write".to_string(), clock.elapsed().as_secs_f64());
-        report.append(&job.report)?;
-        if let Some(line) = log.line(&job.path, &job.report) {
-            crate::outln!("{line}");
+/// A strip of frame `frame` from row `first_row` as the GPU or the tracer gave it, with its
+/// object (material) indices + 1 made scene object ids (`ids`), and checked finite: a non-finite
+/// sample is [`SnellError::NonFinite`] at its frame pixel.
+fn checked_strip(
+    frame: u32,
+    ids: &[u32],
+    first_row: u32,
+    mut strip: RenderedFrame,
+) -> Result<RenderedFrame, SnellError> {
+    for object in &mut strip.object {
+        if *object != crate::draw::NO_OBJECT {
+            *object = ids.get(*object as usize - 1).copied().ok_or_else(|| {
+                SnellError::Argument(format!(
+                    "frame {frame}: object index {} is not one of the {} objects drawn",
+                    *object - 1,
+                    ids.len()
+                ))
+            })?;
         }
     }
-    Ok(())
+    if let Some((x, y, layer, value)) = finite::first_non_finite(&strip) {
+        return Err(SnellError::NonFinite {
+            frame,
+            x,
+            y: first_row + y,
+            layer,
+            value,
+        });
+    }
+    Ok(strip)
 }
 
+/// The scene file's wave (direction in degrees) as the water stage's wave (unit direction).
 fn wave_from_spec(spec: &crate::scene::WaveSpec) -> Wave {
     Wave {
         amplitude_m: spec.amplitude_m,

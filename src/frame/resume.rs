@@ -14,8 +14,8 @@ use std::time::Instant;
 use rayon::prelude::*;
 
 use super::inputs::{InputHash, INPUT_HASH_ATTRIBUTE};
-use super::{FrameToWrite, RenderJob, SnellError, VertexTracking};
-use crate::draw::RenderedFrame;
+use super::writer::{FrameStart, ToWriter};
+use super::{RenderJob, SnellError, VertexTracking};
 use crate::gpu::Renderer;
 use crate::output::report::ReportWriter;
 
@@ -359,6 +359,7 @@ impl RenderJob {
             // The ray-traced methods render on the CPU: no GPU needed (nor set up).
             let mut renderer = if self.method.uses_gpu() {
                 let mut renderer = Renderer::new()?;
+                renderer.set_strip_rows(self.strip_rows);
                 self.upload_textures(&mut renderer)?;
                 Some(renderer)
             } else {
@@ -366,14 +367,18 @@ impl RenderJob {
             };
             let bar = super::progress_bar(to_render.len() as u64, progress);
             // Frames are encoded and written on a second thread while the next one is refracted
-            // and rendered (EXR compression costs about as much as the rest of a frame). The
-            // channel holds one frame, so memory stays bounded; the report row of a frame is
+            // and rendered (EXR compression costs about as much as the rest of a frame), strip by
+            // strip as the GPU reads them back (a frame small enough to read back at once is one
+            // strip). The channel holds two messages (a frame's end and the next one's first
+            // strip), so memory stays bounded by a few strips; the report row of a frame is
             // appended only after its EXR is safely renamed into place.
-            let (sender, receiver) = std::sync::mpsc::sync_channel::<FrameToWrite>(1);
+            let (sender, receiver) = std::sync::mpsc::sync_channel::<ToWriter>(2);
             let written = std::thread::scope(|scope| {
                 let writer =
-                    scope.spawn(move || super::write_frames(receiver, report, write_png, log));
+                    scope.spawn(move || super::writer::write_frames(receiver, report, write_png, log));
                 let mut render_error = None;
+                // Set when the writer stopped (on an error of its own, returned below).
+                let mut writer_stopped = false;
                 // The tracking of the frame rendered last, for the next frame's popping test.
                 let mut last: Option<(u32, VertexTracking)> = None;
                 for &frame in &to_render {
@@ -391,25 +396,50 @@ impl RenderJob {
                         _ => self.previous_tracking(frame, width, height),
                     };
                     let result = previous.and_then(|previous| {
-                        self.refract_and_render(renderer.as_mut(), frame, width, height, previous)
+                        let mut refracted =
+                            self.refract(frame, width, height, previous.as_ref())?;
+                        let mut start = Some(Box::new(FrameStart {
+                            path: output.path(frame),
+                            meta: self.frame_meta(&refracted),
+                            width,
+                            height,
+                        }));
+                        let mut send = |message: ToWriter| {
+                            sender.send(message).map_err(|_| {
+                                writer_stopped = true;
+                                SnellError::Internal {
+                                    frame: Some(frame),
+                                    message: "the frame writer stopped".to_string(),
+                                }
+                            })
+                        };
+                        self.render_refracted_strips(
+                            renderer.as_mut(),
+                            &mut refracted,
+                            width,
+                            height,
+                            &mut |first_row, strip| {
+                                if let Some(start) = start.take() {
+                                    send(ToWriter::Start(start))?;
+                                }
+                                send(ToWriter::Strip(first_row, strip))
+                            },
+                        )?;
+                        send(ToWriter::Done(Box::new(
+                            self.frame_report(&refracted, width, height),
+                        )))?;
+                        Ok(refracted)
                     });
-                    let (refracted, frame_pixels) = match result {
+                    let refracted = match result {
                         Ok(done) => done,
                         Err(error) => {
-                            render_error = Some(error);
+                            if !writer_stopped {
+                                render_error = Some(error);
+                            }
                             break;
                         }
                     };
-                    let job = FrameToWrite {
-                        path: output.path(frame),
-                        meta: self.frame_meta(&refracted),
-                        report: self.frame_report(&refracted, width, height),
-                        rendered: frame_pixels,
-                    };
                     last = Some((frame, refracted.tracking));
-                    if sender.send(job).is_err() {
-                        break; // the writer stopped on an error: it is returned below
-                    }
                     rendered.push(frame);
                     bar.inc(1);
                 }
@@ -449,20 +479,6 @@ impl RenderJob {
             interrupted,
             remaining,
         })
-    }
-
-    /// Refracts and renders `frame` with `previous` (the tracking of frame - 1) for popping.
-    fn refract_and_render(
-        &self,
-        renderer: Option<&mut Renderer>,
-        frame: u32,
-        width: u32,
-        height: u32,
-        previous: Option<VertexTracking>,
-    ) -> Result<(super::RefractedFrame, RenderedFrame), SnellError> {
-        let mut refracted = self.refract(frame, width, height, previous.as_ref())?;
-        let rendered = self.render_refracted(renderer, &mut refracted, width, height)?;
-        Ok((refracted, rendered))
     }
 }
 

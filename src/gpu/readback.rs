@@ -1,5 +1,6 @@
-//! The attachments of one frame size, the buffer they are read back through, and the unpacking
-//! of the read-back bytes into a [`RenderedFrame`].
+//! The attachments of one strip size (a whole frame, or a band of its rows), the buffer they are
+//! read back through, and the unpacking of the read-back bytes into a [`RenderedFrame`] of the
+//! strip's rows.
 
 use super::device::{GpuContext, EXTRA_FORMAT, FLAGS_FORMAT, POSITION_FORMAT, REFLECTION_FORMAT};
 use super::GpuError;
@@ -19,9 +20,25 @@ const FLAGS: usize = 2;
 const REFLECTION: usize = 3;
 const EXTRA: usize = 4;
 
-/// The attachments of one frame size and the buffer they are read back through.
+/// Bytes of readback buffer one row of `width` pixels takes (every image, rows padded).
+pub(super) fn readback_bytes_per_row(context: &GpuContext, width: u32) -> u64 {
+    [
+        context.formats.beauty,
+        POSITION_FORMAT,
+        FLAGS_FORMAT,
+        REFLECTION_FORMAT,
+        EXTRA_FORMAT,
+    ]
+    .iter()
+    .map(|format| padded_bytes_per_row(width, format.block_copy_size(None).unwrap_or(16)) as u64)
+    .sum()
+}
+
+/// The attachments of one strip size (`width` x `height` rows) and the buffer they are read back
+/// through.
 pub(super) struct FrameTargets {
     pub width: u32,
+    /// Rows of the attachments: the frame's height, or a strip's.
     pub height: u32,
     /// Beauty, position, flags, reflection, extra (the order of the readback buffer).
     textures: [wgpu::Texture; IMAGES],
@@ -125,10 +142,12 @@ impl FrameTargets {
         }
     }
 
-    pub fn copy_to_readback(&self, encoder: &mut wgpu::CommandEncoder) {
+    /// Copies the first `rows` rows of every attachment (all of them but in a frame's last,
+    /// shorter strip) into the readback buffer.
+    pub fn copy_to_readback(&self, encoder: &mut wgpu::CommandEncoder, rows: u32) {
         let size = wgpu::Extent3d {
             width: self.width,
-            height: self.height,
+            height: rows,
             depth_or_array_layers: 1,
         };
         for ((texture, bytes_per_pixel), offset) in self
@@ -171,9 +190,12 @@ fn f16_bits_to_f32(bits: u16) -> f32 {
     }
 }
 
+/// Maps the readback buffer and unpacks its first `rows` rows (as [`FrameTargets::copy_to_readback`]
+/// copied them).
 pub(super) fn read_back(
     device: &wgpu::Device,
     targets: &FrameTargets,
+    rows: u32,
 ) -> Result<RenderedFrame, GpuError> {
     let slice = targets.readback.slice(..);
     let (sender, receiver) = std::sync::mpsc::channel();
@@ -191,7 +213,7 @@ pub(super) fn read_back(
         let bytes = slice
             .get_mapped_range()
             .map_err(|error| GpuError::Readback(error.to_string()))?;
-        unpack_frame(&bytes, targets)
+        unpack_frame(&bytes, targets, rows)
     };
     targets.readback.unmap();
     log::debug!(
@@ -220,13 +242,13 @@ const WATER_BIT: u32 = 0x80;
 /// Rows are converted in parallel (rayon) straight into preallocated layers: done on one thread
 /// with a push per value, this was ~6.7 ms of a ~60 ms 1280x720 pool frame on the 2-core machine,
 /// run while the rasteriser's threads sit idle.
-fn unpack_frame(bytes: &[u8], targets: &FrameTargets) -> RenderedFrame {
+fn unpack_frame(bytes: &[u8], targets: &FrameTargets, rows: u32) -> RenderedFrame {
     use rayon::prelude::*;
-    let (width, height) = (targets.width as usize, targets.height as usize);
+    let (width, height) = (targets.width as usize, rows as usize);
     let pixel_count = width * height;
     let mut frame = RenderedFrame {
         width: targets.width,
-        height: targets.height,
+        height: rows,
         beauty_rgba: vec![[0.0; 4]; pixel_count],
         depth_m: vec![0.0; pixel_count],
         apparent_depth_m: vec![0.0; pixel_count],

@@ -40,7 +40,18 @@ const BASE_BYTES: u64 = 320 << 20;
 const BYTES_PER_CELL: u64 = 800;
 const BYTES_PER_VERTEX: u64 = 1000;
 const BYTES_PER_TRIANGLE: u64 = 600;
+/// A pixel of a frame held whole (the ray-traced methods: the traced layers, the EXR's samples).
 const BYTES_PER_PIXEL: u64 = 260;
+/// A pixel of a frame rendered in strips, beyond its strip: the PNG's 4 bytes when asked for, with
+/// a margin.
+const BYTES_PER_STREAMED_PIXEL: u64 = 8;
+/// Pixels of the largest strip: the renderer's readback budget (256 MiB) over the 68 bytes a
+/// pixel takes there ([`crate::gpu::Renderer::strip_rows`]).
+const MAX_STRIP_PIXELS: u64 = (256 << 20) / 68;
+/// A pixel of a strip: its targets and readback on the device (about 145 bytes, in host memory
+/// on Mesa's CPU drivers), the strips in flight to the writer (64 bytes each, up to four) and
+/// their EXR samples and chunks.
+const BYTES_PER_STRIP_PIXEL: u64 = 600;
 const BYTES_PER_RIPPLE_NODE: u64 = 64;
 
 /// `SNELL_MAX_MEMORY` parsed, or the default; an unreadable value is an error naming it.
@@ -98,6 +109,9 @@ pub struct Estimate {
     pub texture_bytes: u64,
     /// Pixels of the image (0 until the size is known).
     pub pixels: u64,
+    /// Whether the frame is drawn and written in strips (the GPU methods), so that only a strip
+    /// of it is held at a time.
+    pub in_strips: bool,
     /// Objects drawn (a pool counts three, a character one per primitive once loaded).
     pub objects: u64,
 }
@@ -111,7 +125,20 @@ impl Estimate {
             .saturating_add(self.vertices.saturating_mul(BYTES_PER_VERTEX))
             .saturating_add(self.triangles.saturating_mul(BYTES_PER_TRIANGLE))
             .saturating_add(self.texture_bytes)
-            .saturating_add(self.pixels.saturating_mul(BYTES_PER_PIXEL))
+            .saturating_add(self.pixel_bytes())
+    }
+
+    /// The memory the image itself needs: a strip's and a little per pixel when it is drawn in
+    /// strips, every pixel's otherwise.
+    fn pixel_bytes(&self) -> u64 {
+        if self.in_strips {
+            let strip = self.pixels.min(MAX_STRIP_PIXELS);
+            strip
+                .saturating_mul(BYTES_PER_STRIP_PIXEL)
+                .saturating_add(self.pixels.saturating_mul(BYTES_PER_STREAMED_PIXEL))
+        } else {
+            self.pixels.saturating_mul(BYTES_PER_PIXEL)
+        }
     }
 
     /// One line for `snell info`.
@@ -322,6 +349,7 @@ pub(crate) fn check_scene(
         triangles,
         texture_bytes: 0,
         pixels: 0,
+        in_strips: false,
         objects: drawn as u64,
     };
     // The scene alone (no image yet) must fit the memory limit too.

@@ -64,132 +64,224 @@ const VERSION: u32 = 2;
 /// Version-field flag: some attribute or channel name is longer than 31 bytes.
 const LONG_NAMES: u32 = 0x400;
 
-/// Encodes a whole file into memory: header, chunk offset table and chunks (compressed in
-/// parallel, written in increasing y order).
-pub(crate) fn encode(
-    spec: &FileSpec,
-    mut channels: Vec<ChannelSource<'_>>,
-) -> Result<Vec<u8>, String> {
-    if spec.width == 0 || spec.height == 0 {
-        return Err(format!("image is empty ({}x{})", spec.width, spec.height));
-    }
-    channels.sort_by(|a, b| a.name.as_bytes().cmp(b.name.as_bytes()));
-    if let Some(pair) = channels
-        .windows(2)
-        .find(|pair| pair[0].name == pair[1].name)
-    {
-        return Err(format!("channel {} is given twice", pair[0].name));
-    }
-    let descriptions: Vec<ChannelDescription> = channels
-        .iter()
-        .map(|channel| {
-            ChannelDescription::new(
-                Text::from_slice_unchecked(channel.name.as_bytes()),
-                channel.sample_type,
-                false,
-            )
-        })
-        .collect();
-    let mut header = Header::new(
-        Text::from_slice_unchecked(b""),
-        (spec.width, spec.height),
-        descriptions.into(),
-    );
-    header.blocks = BlockDescription::ScanLines;
-    header.compression = spec.compression;
-    header.line_order = LineOrder::Increasing;
+/// A file written as it is made: the header and a chunk offset table to be filled in, then the
+/// rows in order, a band at a time (each band's chunks compressed in parallel), then the table.
+/// Only one band's samples and chunks are held at once, and the bytes do not depend on how the
+/// rows are cut into bands.
+pub(crate) struct ChunkStream<W: std::io::Write + std::io::Seek> {
+    out: W,
+    header: Header,
+    /// The channels' names and sample types, in file (name) order.
+    channels: Vec<(String, SampleType)>,
+    width: usize,
+    height: usize,
+    compression: Compression,
+    /// Where the offset table starts in `out`.
+    table_at: u64,
+    /// Where the next chunk goes.
+    position: u64,
+    offsets: Vec<u64>,
+    /// The next row to write.
+    next_row: usize,
+}
 
-    let lines_per_chunk = spec.compression.scan_lines_per_block();
-    let chunk_count = spec.height.div_ceil(lines_per_chunk);
-    let row_bytes: usize = header.channels.bytes_per_pixel * spec.width;
-    let chunks: Vec<Result<Vec<u8>, String>> = (0..chunk_count)
-        .into_par_iter()
-        .map(|chunk| {
-            let first = chunk * lines_per_chunk;
-            let last = (first + lines_per_chunk).min(spec.height);
-            let mut bytes = Vec::with_capacity(row_bytes * (last - first));
-            for y in first..last {
-                for channel in &channels {
-                    let before = bytes.len();
-                    (channel.fill)(y, &mut bytes);
-                    let expected = spec.width * channel.sample_type.bytes_per_sample();
-                    if bytes.len() - before != expected {
-                        return Err(format!(
-                            "channel {} gave {} bytes for row {y}, not {expected}",
-                            channel.name,
-                            bytes.len() - before
-                        ));
+fn io_error(error: std::io::Error) -> String {
+    error.to_string()
+}
+
+impl<W: std::io::Write + std::io::Seek> ChunkStream<W> {
+    /// Writes the header of a file of `spec` with `channels` (their names and types; their rows
+    /// come with [`Self::write_rows`]) and room for the offset table.
+    pub fn start(
+        mut out: W,
+        spec: &FileSpec,
+        channels: &[ChannelSource<'_>],
+    ) -> Result<Self, String> {
+        if spec.width == 0 || spec.height == 0 {
+            return Err(format!("image is empty ({}x{})", spec.width, spec.height));
+        }
+        let mut names: Vec<(String, SampleType)> = channels
+            .iter()
+            .map(|channel| (channel.name.clone(), channel.sample_type))
+            .collect();
+        names.sort_by(|a, b| a.0.as_bytes().cmp(b.0.as_bytes()));
+        if let Some(pair) = names.windows(2).find(|pair| pair[0].0 == pair[1].0) {
+            return Err(format!("channel {} is given twice", pair[0].0));
+        }
+        let descriptions: Vec<ChannelDescription> = names
+            .iter()
+            .map(|(name, sample_type)| {
+                ChannelDescription::new(
+                    Text::from_slice_unchecked(name.as_bytes()),
+                    *sample_type,
+                    false,
+                )
+            })
+            .collect();
+        let mut header = Header::new(
+            Text::from_slice_unchecked(b""),
+            (spec.width, spec.height),
+            descriptions.into(),
+        );
+        header.blocks = BlockDescription::ScanLines;
+        header.compression = spec.compression;
+        header.line_order = LineOrder::Increasing;
+
+        let mut attributes = spec.attributes.clone();
+        let window = IntegerBounds::new(Vec2(0, 0), Vec2(spec.width, spec.height));
+        attributes.extend([
+            (
+                "channels".to_string(),
+                AttributeValue::ChannelList(header.channels.clone()),
+            ),
+            (
+                "compression".to_string(),
+                AttributeValue::Compression(spec.compression),
+            ),
+            (
+                "dataWindow".to_string(),
+                AttributeValue::IntegerBounds(window),
+            ),
+            (
+                "displayWindow".to_string(),
+                AttributeValue::IntegerBounds(window),
+            ),
+            (
+                "lineOrder".to_string(),
+                AttributeValue::LineOrder(LineOrder::Increasing),
+            ),
+        ]);
+        let header_bytes = header_bytes(attributes, names.iter().map(|(name, _)| name.as_str()))?;
+        let chunk_count = spec
+            .height
+            .div_ceil(spec.compression.scan_lines_per_block());
+        out.write_all(&header_bytes).map_err(io_error)?;
+        // The table, zeros until the chunks' places are known.
+        out.write_all(&vec![0u8; 8 * chunk_count])
+            .map_err(io_error)?;
+        let table_at = header_bytes.len() as u64;
+        Ok(ChunkStream {
+            out,
+            header,
+            channels: names,
+            width: spec.width,
+            height: spec.height,
+            compression: spec.compression,
+            table_at,
+            position: table_at + 8 * chunk_count as u64,
+            offsets: Vec::with_capacity(chunk_count),
+            next_row: 0,
+        })
+    }
+
+    /// Writes rows `first_row..first_row + rows` (the next ones; `first_row` on a chunk's
+    /// boundary, and `rows` a whole number of chunks unless they end the image), each channel's
+    /// `fill` called with the row's index within the band.
+    pub fn write_rows(
+        &mut self,
+        first_row: usize,
+        rows: usize,
+        mut channels: Vec<ChannelSource<'_>>,
+    ) -> Result<(), String> {
+        let lines_per_chunk = self.compression.scan_lines_per_block();
+        let end = first_row + rows;
+        if first_row != self.next_row || end > self.height {
+            return Err(format!(
+                "rows {first_row}..{end} do not follow row {} of the {} rows written",
+                self.next_row, self.height
+            ));
+        }
+        if end != self.height && !rows.is_multiple_of(lines_per_chunk) {
+            return Err(format!(
+                "a band of {rows} rows is not a whole number of {lines_per_chunk}-line chunks"
+            ));
+        }
+        channels.sort_by(|a, b| a.name.as_bytes().cmp(b.name.as_bytes()));
+        let names = channels.iter().map(|c| (c.name.as_str(), c.sample_type));
+        if !names.eq(self.channels.iter().map(|(name, t)| (name.as_str(), *t))) {
+            return Err("a band's channels are not the file's".to_string());
+        }
+        let (width, header, compression) = (self.width, &self.header, self.compression);
+        let row_bytes: usize = header.channels.bytes_per_pixel * width;
+        let chunks: Vec<Result<Vec<u8>, String>> = (0..rows.div_ceil(lines_per_chunk))
+            .into_par_iter()
+            .map(|chunk| {
+                let first = chunk * lines_per_chunk;
+                let last = (first + lines_per_chunk).min(rows);
+                let mut bytes = Vec::with_capacity(row_bytes * (last - first));
+                for y in first..last {
+                    for channel in &channels {
+                        let before = bytes.len();
+                        (channel.fill)(y, &mut bytes);
+                        let expected = width * channel.sample_type.bytes_per_sample();
+                        if bytes.len() - before != expected {
+                            return Err(format!(
+                                "channel {} gave {} bytes for row {}, not {expected}",
+                                channel.name,
+                                bytes.len() - before,
+                                first_row + y
+                            ));
+                        }
                     }
                 }
-            }
-            let section = IntegerBounds::new(Vec2(0, first as i32), Vec2(spec.width, last - first));
-            let packed = spec
-                .compression
-                .compress_image_section_to_le(&header, bytes, section)
-                .map_err(|error| format!("{}: {error}", spec.compression))?;
-            let mut chunk_bytes = Vec::with_capacity(packed.len() + 8);
-            chunk_bytes.extend_from_slice(&(first as i32).to_le_bytes());
-            chunk_bytes.extend_from_slice(&(packed.len() as i32).to_le_bytes());
-            chunk_bytes.extend_from_slice(&packed);
-            Ok(chunk_bytes)
-        })
-        .collect();
-    let chunks: Vec<Vec<u8>> = chunks.into_iter().collect::<Result<_, _>>()?;
+                let top = first_row + first;
+                let section = IntegerBounds::new(Vec2(0, top as i32), Vec2(width, last - first));
+                let packed = compression
+                    .compress_image_section_to_le(header, bytes, section)
+                    .map_err(|error| format!("{compression}: {error}"))?;
+                let mut chunk_bytes = Vec::with_capacity(packed.len() + 8);
+                chunk_bytes.extend_from_slice(&(top as i32).to_le_bytes());
+                chunk_bytes.extend_from_slice(&(packed.len() as i32).to_le_bytes());
+                chunk_bytes.extend_from_slice(&packed);
+                Ok(chunk_bytes)
+            })
+            .collect();
+        for chunk in chunks {
+            let chunk = chunk?;
+            self.out.write_all(&chunk).map_err(io_error)?;
+            self.offsets.push(self.position);
+            self.position += chunk.len() as u64;
+        }
+        self.next_row = end;
+        Ok(())
+    }
 
-    let mut attributes = spec.attributes.clone();
-    let window = IntegerBounds::new(Vec2(0, 0), Vec2(spec.width, spec.height));
-    attributes.extend([
-        (
-            "channels".to_string(),
-            AttributeValue::ChannelList(header.channels.clone()),
-        ),
-        (
-            "compression".to_string(),
-            AttributeValue::Compression(spec.compression),
-        ),
-        (
-            "dataWindow".to_string(),
-            AttributeValue::IntegerBounds(window),
-        ),
-        (
-            "displayWindow".to_string(),
-            AttributeValue::IntegerBounds(window),
-        ),
-        (
-            "lineOrder".to_string(),
-            AttributeValue::LineOrder(LineOrder::Increasing),
-        ),
-    ]);
-    let header_bytes = header_bytes(attributes, &channels)?;
-    let table_bytes = 8 * chunk_count;
-    let total = header_bytes.len() + table_bytes + chunks.iter().map(Vec::len).sum::<usize>();
-    let mut file = Vec::with_capacity(total);
-    file.extend_from_slice(&header_bytes);
-    let mut offset = (header_bytes.len() + table_bytes) as u64;
-    for chunk in &chunks {
-        file.extend_from_slice(&offset.to_le_bytes());
-        offset += chunk.len() as u64;
+    /// Fills in the offset table once every row is written; returns the output.
+    pub fn finish(mut self) -> Result<W, String> {
+        if self.next_row != self.height {
+            return Err(format!(
+                "only {} of the {} rows were written",
+                self.next_row, self.height
+            ));
+        }
+        let table: Vec<u8> = self.offsets.iter().flat_map(|o| o.to_le_bytes()).collect();
+        self.out
+            .seek(std::io::SeekFrom::Start(self.table_at))
+            .map_err(io_error)?;
+        self.out.write_all(&table).map_err(io_error)?;
+        self.out
+            .seek(std::io::SeekFrom::Start(self.position))
+            .map_err(io_error)?;
+        self.out.flush().map_err(io_error)?;
+        Ok(self.out)
     }
-    for chunk in chunks {
-        file.extend_from_slice(&chunk);
-    }
-    Ok(file)
 }
 
 /// Magic number, version field and the attributes in name order, ended by a null byte.
-fn header_bytes(
+fn header_bytes<'n>(
     mut attributes: Vec<(String, AttributeValue)>,
-    channels: &[ChannelSource<'_>],
+    channel_names: impl Iterator<Item = &'n str>,
 ) -> Result<Vec<u8>, String> {
     attributes.sort_by(|a, b| a.0.as_bytes().cmp(b.0.as_bytes()));
     if let Some(pair) = attributes.windows(2).find(|pair| pair[0].0 == pair[1].0) {
         return Err(format!("header attribute {} is given twice", pair[0].0));
     }
     let mut long_names = false;
+    let channel_names: Vec<&str> = channel_names.collect();
     for name in attributes
         .iter()
         .map(|(name, _)| name.as_str())
-        .chain(channels.iter().map(|channel| channel.name.as_str()))
+        .chain(channel_names)
     {
         if name.is_empty() || name.contains('\0') || name.len() > 255 {
             return Err(format!(

@@ -23,7 +23,6 @@ mod decode;
 mod encode;
 mod header;
 
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use ::exr::compression::Compression;
@@ -376,43 +375,85 @@ fn frame_channels<'a>(
     list
 }
 
-/// Encodes a frame into the bytes of its EXR file.
-fn encode_frame(frame: &RenderedFrame, meta: &FrameMeta) -> Result<Vec<u8>, String> {
-    check_frame_shape(frame, meta.write.layers)?;
-    if let Some(&id) = frame
-        .object
-        .iter()
-        .find(|&&id| id as usize > meta.object_names.len())
-    {
-        return Err(format!(
-            "object id {id} has no name (the frame names {} objects)",
-            meta.object_names.len()
-        ));
+/// A frame's EXR file written strip by strip (bands of rows, top first), as the renderer reads
+/// them back: the header from the first strip's layers, then each strip's chunks. The file's
+/// bytes are the same however the frame is cut into strips.
+pub struct FrameStream<W: std::io::Write + std::io::Seek> {
+    stream: encode::ChunkStream<W>,
+    crypto_ids: Vec<f32>,
+    water_id: f32,
+    write: WriteOptions,
+    object_count: usize,
+    width: u32,
+}
+
+impl<W: std::io::Write + std::io::Seek> FrameStream<W> {
+    /// Writes the header of a `width` x `height` frame of `meta` whose layers are those of
+    /// `first_strip` (its first strip, not yet written).
+    pub fn start(
+        out: W,
+        meta: &FrameMeta,
+        width: u32,
+        height: u32,
+        first_strip: &RenderedFrame,
+    ) -> Result<Self, String> {
+        let water_name = cryptomatte::water_name(&meta.object_names);
+        let crypto_ids: Vec<f32> = meta
+            .object_names
+            .iter()
+            .map(|name| cryptomatte::id_float(name))
+            .collect();
+        let mut crypto_names = meta.object_names.clone();
+        crypto_names.push(water_name.clone());
+        let spec = encode::FileSpec {
+            width: width as usize,
+            height: height as usize,
+            compression: meta.write.compression.codec(),
+            attributes: header::attributes(meta, width as usize, height as usize, &crypto_names)?,
+        };
+        let water_id = cryptomatte::id_float(&water_name);
+        let channels = frame_channels(first_strip, &crypto_ids, water_id, &meta.write);
+        let stream = encode::ChunkStream::start(out, &spec, &channels)?;
+        drop(channels);
+        Ok(FrameStream {
+            stream,
+            crypto_ids,
+            water_id,
+            write: meta.write.clone(),
+            object_count: meta.object_names.len(),
+            width,
+        })
     }
-    let water_name = cryptomatte::water_name(&meta.object_names);
-    let crypto_ids: Vec<f32> = meta
-        .object_names
-        .iter()
-        .map(|name| cryptomatte::id_float(name))
-        .collect();
-    let mut crypto_names = meta.object_names.clone();
-    crypto_names.push(water_name.clone());
-    let (width, height) = (frame.width as usize, frame.height as usize);
-    let spec = encode::FileSpec {
-        width,
-        height,
-        compression: meta.write.compression.codec(),
-        attributes: header::attributes(meta, width, height, &crypto_names)?,
-    };
-    encode::encode(
-        &spec,
-        frame_channels(
-            frame,
-            &crypto_ids,
-            cryptomatte::id_float(&water_name),
-            &meta.write,
-        ),
-    )
+
+    /// Writes `strip`, the frame's rows from `first_row` on (the next ones; a whole number of the
+    /// compression's chunks unless it ends the frame).
+    pub fn write_strip(&mut self, first_row: u32, strip: &RenderedFrame) -> Result<(), String> {
+        check_frame_shape(strip, self.write.layers)?;
+        if strip.width != self.width {
+            return Err(format!(
+                "a strip is {} pixels wide, the frame {}",
+                strip.width, self.width
+            ));
+        }
+        if let Some(&id) = strip
+            .object
+            .iter()
+            .find(|&&id| id as usize > self.object_count)
+        {
+            return Err(format!(
+                "object id {id} has no name (the frame names {} objects)",
+                self.object_count
+            ));
+        }
+        let channels = frame_channels(strip, &self.crypto_ids, self.water_id, &self.write);
+        self.stream
+            .write_rows(first_row as usize, strip.height as usize, channels)
+    }
+
+    /// Completes the file once every row is written; returns the output.
+    pub fn finish(self) -> Result<W, String> {
+        self.stream.finish()
+    }
 }
 
 /// Writes one frame to `path` (normally [`frame_path`]) via a temporary file in the same directory,
@@ -423,14 +464,48 @@ pub fn write_frame_exr(
     frame: &RenderedFrame,
     meta: &FrameMeta,
 ) -> Result<(), OutputError> {
+    let mut whole = Some(frame);
+    write_frame_exr_strips(path, meta, frame.width, frame.height, || {
+        Ok(whole
+            .take()
+            .map(|frame| (0, std::borrow::Cow::Borrowed(frame))))
+    })
+}
+
+/// Writes a `width` x `height` frame to `path` as [`write_frame_exr`] does, from the strips
+/// `next_strip` gives (each with the frame row it starts at, top first; `None` after the last),
+/// each written as it comes: only one strip of the frame is held here at a time. An error from
+/// `next_strip` (the render stopped) or a frame left incomplete leaves nothing at `path`.
+pub fn write_frame_exr_strips<'f>(
+    path: &Path,
+    meta: &FrameMeta,
+    width: u32,
+    height: u32,
+    mut next_strip: impl FnMut() -> Result<Option<(u32, std::borrow::Cow<'f, RenderedFrame>)>, String>,
+) -> Result<(), OutputError> {
     // Chunks are compressed in parallel (ZIP dominates the cost of a frame) and written in order,
     // so the bytes do not depend on thread timing.
-    let bytes = encode_frame(frame, meta).map_err(|cause| OutputError::Write {
-        path: path.to_path_buf(),
-        cause,
-    })?;
     write_atomically(path, |file| {
-        file.write_all(&bytes).map_err(|error| error.to_string())
+        let Some((first_row, first)) = next_strip()? else {
+            return Err("the frame has no rows".to_string());
+        };
+        let mut stream = FrameStream::start(
+            std::io::BufWriter::new(&mut *file),
+            meta,
+            width,
+            height,
+            &first,
+        )?;
+        stream.write_strip(first_row, &first)?;
+        drop(first);
+        while let Some((first_row, strip)) = next_strip()? {
+            stream.write_strip(first_row, &strip)?;
+        }
+        stream
+            .finish()?
+            .into_inner()
+            .map_err(|error| error.error().to_string())?;
+        Ok(())
     })
 }
 
