@@ -12,7 +12,7 @@ use std::path::Path;
 
 use snell::draw::RenderedFrame;
 use snell::frame::resume::SequenceOptions;
-use snell::frame::{FrameRange, RenderJob};
+use snell::frame::RenderJob;
 use snell::gpu::Renderer;
 
 const WIDTH: u32 = 1280;
@@ -119,17 +119,15 @@ fn a_frame_written_in_strips_equals_the_frame_written_whole_in_every_channel() {
         let mut job = pool();
         job.strip_rows = strip_rows;
         let out_dir = dir.path().join(name);
-        let range = FrameRange {
-            first: 24,
-            last: 24,
-        };
+        let output = snell::output::pattern::OutputPattern::for_scene(&out_dir, "pool");
         job.render_sequence(&SequenceOptions {
-            range,
+            frames: &[24],
             width: WIDTH,
             height: HEIGHT,
-            out_dir: &out_dir,
+            output: &output,
             write_png: true,
             progress: false,
+            log: snell::frame::resume::FrameLog::Quiet,
             resume: false,
             stop: None,
         })
