@@ -374,8 +374,8 @@ impl RenderJob {
             // appended only after its EXR is safely renamed into place.
             let (sender, receiver) = std::sync::mpsc::sync_channel::<ToWriter>(2);
             let written = std::thread::scope(|scope| {
-                let writer =
-                    scope.spawn(move || super::writer::write_frames(receiver, report, write_png, log));
+                let writer = scope
+                    .spawn(move || super::writer::write_frames(receiver, report, write_png, log));
                 let mut render_error = None;
                 // Set when the writer stopped (on an error of its own, returned below).
                 let mut writer_stopped = false;
