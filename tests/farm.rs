@@ -11,6 +11,8 @@ use snell::frame::RenderJob;
 use snell::output::read_frame_exr;
 use snell::sim::StateSource;
 
+mod common;
+
 const SIZE: &str = "64x36";
 
 fn repo(path: &str) -> PathBuf {
@@ -18,16 +20,7 @@ fn repo(path: &str) -> PathBuf {
 }
 
 fn render_args(scene: &Path, out: &Path, frames: &str) -> Vec<String> {
-    vec![
-        "render".into(),
-        scene.display().to_string(),
-        "--out".into(),
-        out.display().to_string(),
-        "--frames".into(),
-        frames.into(),
-        "--size".into(),
-        SIZE.into(),
-    ]
+    common::render_args(scene, out, frames, SIZE)
 }
 
 fn spawn(args: &[String]) -> Child {

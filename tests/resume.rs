@@ -12,25 +12,15 @@ use std::time::{Duration, Instant, SystemTime};
 
 use snell::output::read_frame_exr;
 
+mod common;
+use common::render_args;
+
 const SIZE: &str = "160x90";
 
 fn scene(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("scenes")
         .join(name)
-}
-
-fn render_args(scene: &Path, out: &Path, frames: &str, size: &str) -> Vec<String> {
-    vec![
-        "render".into(),
-        scene.display().to_string(),
-        "--out".into(),
-        out.display().to_string(),
-        "--frames".into(),
-        frames.into(),
-        "--size".into(),
-        size.into(),
-    ]
 }
 
 fn snell(args: &[String]) -> Output {

@@ -330,19 +330,10 @@ mod tests {
         crate::sim::spectral::tests::settings(nodes, nodes, 2.0 / (nodes - 1) as f64)
     }
 
-    /// A narrow Gaussian bump of `amplitude_m` and width `sigma_m` at (x, z), at rest.
+    /// A narrow Gaussian bump of height 1 cm and width `sigma_m` at (x, z), at rest (the spectral
+    /// solver's tests build theirs the same way).
     fn impulse(settings: RippleSettings, x: f64, z: f64, sigma_m: f64) -> RippleState {
-        let mut state = RippleState::calm(settings);
-        let nx = settings.nodes_x as usize;
-        for (at, height) in state.height_m.iter_mut().enumerate() {
-            let px = settings.min_x + (at % nx) as f64 * settings.spacing_m;
-            let pz = settings.min_z + (at / nx) as f64 * settings.spacing_m;
-            let r2 = (px - x).powi(2) + (pz - z).powi(2);
-            *height = (0.01 * (-r2 / (2.0 * sigma_m * sigma_m)).exp()) as f32;
-        }
-        // On the grid: the tests below are not about zeros.
-        assert!(state.max_abs_height_m() > 0.005);
-        state
+        crate::sim::spectral::tests::bump(settings, x, z, sigma_m)
     }
 
     #[test]

@@ -368,7 +368,7 @@ pub(crate) mod tests {
     }
 
     /// A Gaussian bump of height 1 cm and width `sigma_m` at (x, z), at rest.
-    fn bump(settings: RippleSettings, x: f64, z: f64, sigma_m: f64) -> RippleState {
+    pub(crate) fn bump(settings: RippleSettings, x: f64, z: f64, sigma_m: f64) -> RippleState {
         let mut state = RippleState::calm(settings);
         let nx = settings.nodes_x as usize;
         for (at, height) in state.height_m.iter_mut().enumerate() {

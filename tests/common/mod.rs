@@ -16,3 +16,17 @@ pub fn snell(args: &[&str], cwd: &Path) -> Output {
         .output()
         .expect("the snell binary runs")
 }
+
+/// `render SCENE --out OUT --frames FRAMES --size SIZE`, as owned arguments.
+pub fn render_args(scene: &Path, out: &Path, frames: &str, size: &str) -> Vec<String> {
+    vec![
+        "render".into(),
+        scene.display().to_string(),
+        "--out".into(),
+        out.display().to_string(),
+        "--frames".into(),
+        frames.into(),
+        "--size".into(),
+        size.into(),
+    ]
+}

@@ -235,7 +235,7 @@ pub fn split_glb(bytes: &[u8]) -> Option<(serde_json::Value, Option<Vec<u8>>)> {
 
 pub fn join_glb(json: &[u8], bin: Option<&[u8]>) -> Vec<u8> {
     let mut json = json.to_vec();
-    while json.len() % 4 != 0 {
+    while !json.len().is_multiple_of(4) {
         json.push(b' ');
     }
     let mut out = Vec::new();
@@ -734,7 +734,7 @@ pub fn scene_case(index: usize, base: &SceneBase, rng: &mut Rng) -> Case {
     };
     let frame = first_frame(&bytes);
     case.files.push((scene.clone(), bytes));
-    if index % 3 == 0 {
+    if index.is_multiple_of(3) {
         case.info_and_render(&scene, frame, &[]);
     } else {
         case.render(&scene, frame, &[]);
@@ -1122,7 +1122,7 @@ pub fn model_case(index: usize, base: &ModelBase, rng: &mut Rng) -> Case {
         "scene.toml".into(),
         character_scene(file, base.scale, &animation).into_bytes(),
     ));
-    if index % 3 == 0 {
+    if index.is_multiple_of(3) {
         case.info_and_render("scene.toml", 1, &[]);
     } else {
         case.render("scene.toml", 1, &[]);

@@ -419,7 +419,7 @@ impl<W: std::io::Write + std::io::Seek> FrameStream<W> {
             stream,
             crypto_ids,
             water_id,
-            write: meta.write.clone(),
+            write: meta.write,
             object_count: meta.object_names.len(),
             width,
         })
