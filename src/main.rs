@@ -630,6 +630,11 @@ fn preview(
     out: Option<PathBuf>,
 ) -> Result<(), SnellError> {
     let (width, height) = frame::parse_size(size)?;
+    // A scene that is not a regular file of a sensible size (a device such as /dev/zero, a FIFO, a
+    // folder) is refused here with exit 2, as `snell render` refuses it; a regular scene with
+    // errors is served, so that fixing it in an editor reloads the page.
+    snell::files::check_regular(scene_path, snell::files::MAX_SCENE_BYTES)
+        .map_err(snell::scene::SceneError::File)?;
     let mut options = snell::preview::PreviewOptions::new(scene_path);
     options.port = port;
     options.width = width;

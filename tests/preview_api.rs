@@ -623,3 +623,50 @@ fn sigint_stops_the_preview_even_when_the_parent_ignores_it() {
         );
     }
 }
+
+/// A scene path that is not a regular file is refused before the server starts, with exit 2 and
+/// the reason, as `snell render` refuses it: a device that never ends, a FIFO with no writer
+/// (which would block a reader), and a folder. Serving an error page for these would leave a
+/// server up for a scene that can never load.
+#[test]
+fn a_scene_that_is_not_a_regular_file_is_refused_at_start() {
+    let folder = tempfile::tempdir().unwrap();
+    let fifo = folder.path().join("scene.toml");
+    let c_path = std::ffi::CString::new(fifo.as_os_str().as_encoded_bytes()).unwrap();
+    // SAFETY: a valid NUL-terminated path; mkfifo(3) has no other preconditions.
+    assert_eq!(unsafe { libc::mkfifo(c_path.as_ptr(), 0o600) }, 0, "mkfifo");
+    for (path, kind) in [
+        (Path::new("/dev/zero"), "character device"),
+        (fifo.as_path(), "FIFO"),
+        (folder.path(), "folder"),
+    ] {
+        let started = Instant::now();
+        let output = std::process::Command::new(env!("CARGO_BIN_EXE_snell"))
+            .arg("preview")
+            .arg(path)
+            .args(["--port", "0", "--size", "160x90"])
+            .stdin(std::process::Stdio::null())
+            .output()
+            .expect("snell runs");
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert_eq!(
+            output.status.code(),
+            Some(2),
+            "{}: {stderr}",
+            path.display()
+        );
+        assert!(
+            stderr.contains(&path.display().to_string()) && stderr.contains("regular"),
+            "{kind}: the error names the path and what is wanted: {stderr}"
+        );
+        assert!(
+            output.stdout.is_empty(),
+            "{kind}: no server address printed: {:?}",
+            String::from_utf8_lossy(&output.stdout)
+        );
+        assert!(
+            started.elapsed() < Duration::from_secs(20),
+            "{kind}: refused at once"
+        );
+    }
+}
