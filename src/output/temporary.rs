@@ -221,20 +221,32 @@ fn is_stale(path: &Path, owner: &TemporaryOwner) -> bool {
 }
 
 /// Removes the temporary files of dead processes in `dir` and, one level down, in each folder of
-/// `dir/<nested>/` (the simulation checkpoints' folders); returns what it removed. A process id can
-/// be reused: a stale file whose id now belongs to a running process is kept (harmless: it is
-/// hidden and never read as a frame). Another machine's files are judged by age ([`is_stale`]).
+/// `dir/<nested>/` (the simulation checkpoints' folders); returns what it removed. A folder of
+/// `dir/<nested>/` with a temporary name is a checkpoint version a process moved aside to delete
+/// it (`sim/checkpoint.rs`): if that process is gone (killed between the move and the delete),
+/// the folder goes whole. A process id can be reused: a stale file whose id now belongs to a
+/// running process is kept (harmless: it is hidden and never read as a frame). Another machine's
+/// files are judged by age ([`is_stale`]).
 pub fn remove_stale(dir: &Path, nested: &str) -> Vec<PathBuf> {
     let mut folders = vec![dir.to_path_buf()];
-    if let Ok(entries) = fs::read_dir(dir.join(nested)) {
-        folders.extend(
-            entries
-                .flatten()
-                .map(|entry| entry.path())
-                .filter(|path| path.is_dir()),
-        );
-    }
     let mut removed = Vec::new();
+    if let Ok(entries) = fs::read_dir(dir.join(nested)) {
+        for entry in entries.flatten() {
+            let path = entry.path();
+            if !entry.file_type().is_ok_and(|kind| kind.is_dir()) {
+                continue;
+            }
+            let name = entry.file_name().to_string_lossy().into_owned();
+            match temporary_owner(&name) {
+                Some(owner) => {
+                    if is_stale(&path, &owner) && fs::remove_dir_all(&path).is_ok() {
+                        removed.push(path);
+                    }
+                }
+                None => folders.push(path),
+            }
+        }
+    }
     for folder in folders {
         let Ok(entries) = fs::read_dir(&folder) else {
             continue;
@@ -347,6 +359,27 @@ mod tests {
         );
         assert!(frame.exists());
         assert!(!dead.exists() && !dead_nested.exists());
+    }
+
+    /// A checkpoint version folder moved aside for deletion by a process that was then killed
+    /// goes whole; one moved aside by a live process (deleting it now) and the versions in use
+    /// stay.
+    #[test]
+    fn folders_moved_aside_by_dead_processes_go_whole() {
+        let dir = tempfile::tempdir().unwrap();
+        let root = dir.path().join(".sim");
+        let version = root.join("pool-abc");
+        let dead_aside = root.join(format!(".pool-old.tmp-{DEAD_PID}.{}", host_tag()));
+        let live_aside = temporary_path_for(&root.join("pool-older"));
+        for folder in [&version, &dead_aside, &live_aside] {
+            fs::create_dir_all(folder).unwrap();
+            fs::write(folder.join("ripples-000002.bin"), b"x").unwrap();
+        }
+        let removed = remove_stale(dir.path(), ".sim");
+        assert_eq!(removed, vec![dead_aside.clone()]);
+        assert!(!dead_aside.exists());
+        assert!(live_aside.join("ripples-000002.bin").exists());
+        assert!(version.join("ripples-000002.bin").exists());
     }
 
     #[test]
