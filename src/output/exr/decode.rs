@@ -386,6 +386,19 @@ fn read_meta(
         })
         .collect();
     text_attributes.sort();
+    let write = match attributes.other.get(&text(header::OUTPUT)) {
+        None => super::WriteOptions::default(),
+        Some(AttributeValue::Text(label)) => {
+            let label = text_string(label);
+            super::WriteOptions::from_label(&label).ok_or_else(|| {
+                read_error(format!(
+                    "header attribute `{}` is {label:?}, not `beauty=half|float32 compression=KIND layers=LIST`",
+                    header::OUTPUT
+                ))
+            })?
+        }
+        Some(_) => return Err(mismatch(header::OUTPUT)),
+    };
     Ok(ReadMeta {
         frame,
         time_secs,
@@ -403,5 +416,6 @@ fn read_meta(
         object_names,
         text_attributes,
         channels: Vec::new(),
+        write,
     })
 }

@@ -127,6 +127,26 @@ impl WriteOptions {
             self.layers.label()
         )
     }
+
+    /// Reads [`Self::label`] back (the header's `snell.output`); `None` if it is not one.
+    pub fn from_label(label: &str) -> Option<WriteOptions> {
+        let mut words = label.split(' ');
+        let half_beauty = match words.next()?.strip_prefix("beauty=")? {
+            "half" => true,
+            "float32" => false,
+            _ => return None,
+        };
+        let compression = words.next()?.strip_prefix("compression=")?;
+        let compression = ExrCompression::ALL
+            .into_iter()
+            .find(|kind| kind.name() == compression)?;
+        let (layers, _) = channels::LayerSet::parse(words.next()?.strip_prefix("layers=")?).ok()?;
+        words.next().is_none().then_some(WriteOptions {
+            half_beauty,
+            compression,
+            layers,
+        })
+    }
 }
 
 /// The header of a frame read back by [`read_frame_exr`].
@@ -149,6 +169,9 @@ pub struct ReadMeta {
     pub text_attributes: Vec<(String, String)>,
     /// The channels the file holds, sorted (a frame written with `--layers` lacks some).
     pub channels: Vec<String>,
+    /// How the frame was stored, from `snell.output`; the default (every layer, float32 beauty,
+    /// zip) for frames written before it existed, which held every layer.
+    pub write: WriteOptions,
 }
 
 impl FrameMeta {
@@ -166,7 +189,7 @@ impl FrameMeta {
             owner: None,
             capture_unix_secs: None,
             extra: read.text_attributes.clone(),
-            write: WriteOptions::default(),
+            write: read.write,
         }
     }
 }

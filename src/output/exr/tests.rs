@@ -509,7 +509,8 @@ fn every_compression_is_lossless_and_half_touches_only_the_beauty() {
                     compression.name()
                 )
             );
-            let (read, _) = read_frame_exr(&path).unwrap();
+            let (read, read_meta) = read_frame_exr(&path).unwrap();
+            assert_eq!(read_meta.write, write);
             let mut want = expected.clone();
             if half_beauty {
                 for p in want.beauty_rgba.iter_mut().flatten() {
@@ -519,6 +520,34 @@ fn every_compression_is_lossless_and_half_touches_only_the_beauty() {
             }
             assert_bit_exact(&want, &read);
         }
+    }
+}
+
+/// `snell.output` reads back into the options that wrote it, and nothing else does.
+#[test]
+fn write_options_labels_read_back() {
+    use channels::LayerSet;
+    for compression in ExrCompression::ALL {
+        for half_beauty in [false, true] {
+            for text in ["all", "comp", "Z,P", "beauty"] {
+                let write = WriteOptions {
+                    half_beauty,
+                    compression,
+                    layers: LayerSet::parse(text).unwrap().0,
+                };
+                assert_eq!(WriteOptions::from_label(&write.label()), Some(write));
+            }
+        }
+    }
+    for bad in [
+        "",
+        "beauty=half",
+        "beauty=f16 compression=zip layers=all",
+        "beauty=half compression=dwaa layers=all",
+        "beauty=half compression=zip layers=Q",
+        "beauty=half compression=zip layers=all more",
+    ] {
+        assert_eq!(WriteOptions::from_label(bad), None, "{bad:?}");
     }
 }
 
@@ -602,6 +631,19 @@ fn chosen_layers_are_the_only_ones_written_and_read_back() {
 
         let (read, read_meta) = read_frame_exr(&path).unwrap();
         assert_eq!(read_meta.channels, want);
+        // Read back, the frame's metadata says how it was stored: written again from it, it
+        // holds the same layers (not every layer, which the frame lacks).
+        assert_eq!(read_meta.write, meta.write, "{text}");
+        assert_eq!(FrameMeta::from_read(&read_meta, "pool").write, meta.write);
+        let again = temp.path().join(format!("again-{}.exr", layers.label()));
+        write_frame_exr(&again, &read, &FrameMeta::from_read(&read_meta, "pool")).unwrap();
+        let mut rewritten = raw.types.clone();
+        if !(layers.has(Layer::WaterMatte) && layers.has(Layer::CryptoObject)) {
+            // The sky reflection reads back only with the matte and the water's Cryptomatte
+            // coverage (its reflectance); without them it comes back empty and is not written.
+            rewritten.retain(|name, _| !channels::SKY_REFLECTION.contains(&name.as_str()));
+        }
+        assert_eq!(read_channels(&again).unwrap().types, rewritten, "{text}");
         let beauty = |f: &RenderedFrame| {
             f.beauty_rgba
                 .iter()
