@@ -19,6 +19,166 @@ pub struct BenchFigures {
     pub reference: ReferenceFigures,
     pub exact: ExactFigures,
     pub wake: WakeFigures,
+    pub written: WrittenFigures,
+}
+
+/// The whole `snell render` per frame, written and not, of the frame-time scene at 1280x720: the
+/// figure with the targets of issue 14 point 4 (a written frame at most 1.3x an unwritten one with
+/// `--layers comp`, 2.5x with `all`). Each pass renders the same frames three times, amortised
+/// per frame: unwritten (renderer set up, textures uploaded, then refraction and render with
+/// readback of each frame in sequence, nothing encoded), then [`RenderJob::render_sequence`] into
+/// a temporary folder (the renderer set-up too, then what `snell render` does: checkpoints, EXR
+/// encoding, compression, write, fsync and rename on the writer thread, the report row) with
+/// `--layers comp` (half beauty) and with `all` (the default float32 beauty), default `zip`
+/// compression. The three alternate pass by pass, so a busy machine slows them alike; each ratio is
+/// the median of the per-pass ratios.
+#[derive(Debug, Serialize)]
+pub struct WrittenFigures {
+    pub scene: String,
+    pub size: [u32; 2],
+    /// The frames rendered in each pass (inclusive), and the passes.
+    pub frames: [u32; 2],
+    pub passes: u32,
+    /// Median wall-clock milliseconds per frame, amortised over a pass.
+    pub unwritten_ms: f64,
+    pub comp_ms: f64,
+    pub all_ms: f64,
+    /// Median over the passes of written / unwritten (targets: at most 1.3 and 2.5).
+    pub comp_ratio: f64,
+    pub all_ratio: f64,
+    /// One frame's file size, MB (10^6 bytes), of each preset.
+    pub comp_file_mb: f64,
+    pub all_file_mb: f64,
+    /// Median over the frames of the report's `write` stage (encode, compress, write, fsync,
+    /// rename: the writer thread's time on the frame, waiting for strips excluded), ms.
+    pub comp_write_stage_ms: f64,
+    pub all_write_stage_ms: f64,
+}
+
+impl WrittenFigures {
+    fn to_text(&self) -> String {
+        format!(
+            "whole `snell render` of {} frames {}-{} at {}x{}, per frame (amortised; median of {} passes):\n\
+             \x20 unwritten {:.0} ms; --layers comp {:.0} ms ({:.2}x; target at most 1.3x; {:.1} MB, write stage {:.0} ms); \
+             all {:.0} ms ({:.2}x; target at most 2.5x; {:.1} MB, write stage {:.0} ms)\n",
+            self.scene,
+            self.frames[0],
+            self.frames[1],
+            self.size[0],
+            self.size[1],
+            self.passes,
+            self.unwritten_ms,
+            self.comp_ms,
+            self.comp_ratio,
+            self.comp_file_mb,
+            self.comp_write_stage_ms,
+            self.all_ms,
+            self.all_ratio,
+            self.all_file_mb,
+            self.all_write_stage_ms,
+        )
+    }
+}
+
+/// [`WrittenFigures`] of `frames` frames of `scene_path` from its first frame, `passes` passes.
+pub fn written_times(
+    scene_path: &Path,
+    frames: u32,
+    passes: u32,
+) -> Result<WrittenFigures, SnellError> {
+    use crate::output::exr::channels::LayerSet;
+    use crate::output::exr::WriteOptions;
+    let (width, height) = (1280, 720);
+    let mut job = RenderJob::prepare(scene_path)?;
+    let timeline = *job.timeline();
+    let first = timeline.first_frame;
+    let last = (first + frames.max(1) - 1).min(timeline.last_frame);
+    let list: Vec<u32> = (first..=last).collect();
+    let count = list.len() as f64;
+    let unwritten = |job: &RenderJob| -> Result<f64, SnellError> {
+        let start = Instant::now();
+        let mut renderer = Renderer::new()?;
+        renderer.set_strip_rows(job.strip_rows);
+        job.upload_textures(&mut renderer)?;
+        let mut previous = None;
+        for &frame in &list {
+            let mut refracted = job.refract(frame, width, height, previous.as_ref())?;
+            job.render_refracted(&mut renderer, &mut refracted, width, height)?;
+            previous = Some(refracted.tracking);
+        }
+        Ok(start.elapsed().as_secs_f64() * 1e3 / count)
+    };
+    let presets = [
+        WriteOptions {
+            half_beauty: true,
+            layers: LayerSet::COMP,
+            ..WriteOptions::default()
+        },
+        WriteOptions::default(),
+    ];
+    // Per preset: ms per frame of each pass, file MB, write-stage ms of each frame.
+    let mut written_ms = [Vec::new(), Vec::new()];
+    let mut ratios = [Vec::new(), Vec::new()];
+    let mut file_mb = [0.0; 2];
+    let mut write_stage_ms = [Vec::new(), Vec::new()];
+    let mut unwritten_ms = Vec::new();
+    for _ in 0..passes.max(1) {
+        let plain = unwritten(&job)?;
+        unwritten_ms.push(plain);
+        for (k, write) in presets.iter().enumerate() {
+            job.write = *write;
+            let dir = tempfile::tempdir().map_err(|error| {
+                SnellError::Argument(format!("bench: cannot make a temporary folder: {error}"))
+            })?;
+            let output =
+                crate::output::pattern::OutputPattern::for_scene(dir.path(), job.scene_name());
+            let start = Instant::now();
+            job.render_sequence(&super::resume::SequenceOptions {
+                frames: &list,
+                width,
+                height,
+                output: &output,
+                write_png: false,
+                progress: false,
+                log: super::resume::FrameLog::Quiet,
+                resume: false,
+                stop: None,
+            })?;
+            let ms = start.elapsed().as_secs_f64() * 1e3 / count;
+            written_ms[k].push(ms);
+            ratios[k].push(ms / plain);
+            file_mb[k] = std::fs::metadata(output.path(first))
+                .map(|m| m.len() as f64 / 1e6)
+                .unwrap_or(f64::NAN);
+            let report =
+                std::fs::read_to_string(dir.path().join("report.jsonl")).unwrap_or_default();
+            for line in report.lines() {
+                let row: serde_json::Value = serde_json::from_str(line).unwrap_or_default();
+                if let Some(secs) = row["stage_secs"]["write"].as_f64() {
+                    write_stage_ms[k].push(secs * 1e3);
+                }
+            }
+        }
+        job.write = WriteOptions::default();
+    }
+    let [comp_ms, all_ms] = written_ms.map(|mut v| median(&mut v));
+    let [comp_ratio, all_ratio] = ratios.map(|mut v| median(&mut v));
+    let [comp_write_stage_ms, all_write_stage_ms] = write_stage_ms.map(|mut v| median(&mut v));
+    Ok(WrittenFigures {
+        scene: job.scene_name().to_string(),
+        size: [width, height],
+        frames: [first, last],
+        passes: passes.max(1),
+        unwritten_ms: median(&mut unwritten_ms),
+        comp_ms,
+        all_ms,
+        comp_ratio,
+        all_ratio,
+        comp_file_mb: file_mb[0],
+        all_file_mb: file_mb[1],
+        comp_write_stage_ms,
+        all_write_stage_ms,
+    })
 }
 
 /// The refraction stage on frames with a character's wake beside a calm copy of the same scene
@@ -344,7 +504,7 @@ impl BenchFigures {
              ripples: {:.0} frames/s on a 256x256 grid\n\
              {}\
              skinning + ripples: {:.1} % of the {} frame\n\
-             {}{}{}",
+             {}{}{}{}",
             self.refraction.vertices_per_sec / 1e6,
             self.refraction.scenario,
             self.refraction.speedup_vs_brute_force,
@@ -357,6 +517,7 @@ impl BenchFigures {
             self.reference.to_text(),
             self.exact.to_text(),
             self.wake.to_text(),
+            self.written.to_text(),
         )
     }
 }
@@ -404,6 +565,10 @@ fn character_throughput(fox: &Path) -> Result<(f64, f64), SnellError> {
     Ok((skinning, median(&mut per_batch)))
 }
 
+/// Frames of each pass of [`written_times`] in `snell bench`, and its passes.
+const WRITTEN_FRAMES: u32 = 8;
+const WRITTEN_PASSES: u32 = 3;
+
 pub fn run(
     scene_path: &Path,
     characters_scene_path: &Path,
@@ -439,6 +604,7 @@ pub fn run(
     let reference = reference_figures(scene_path, frames)?;
     let exact = exact_times(scene_path, frames)?;
     let wake = wake_times(wake_scene_path, wake_frames)?;
+    let written = written_times(scene_path, WRITTEN_FRAMES, WRITTEN_PASSES)?;
     Ok(BenchFigures {
         refraction,
         frame,
@@ -451,6 +617,7 @@ pub fn run(
         },
         exact,
         wake,
+        written,
     })
 }
 
@@ -568,6 +735,18 @@ fn process_cpu_secs() -> f64 {
 #[cfg(test)]
 mod tuning {
     use super::*;
+
+    /// `snell bench`'s written-frame figures alone, on `SNELL_WRITTEN_SCENE` (default
+    /// scenes/pool.toml):
+    /// `cargo test --release --lib frame::bench::tuning::written_frames -- --ignored --nocapture`.
+    #[test]
+    #[ignore = "tuning aid"]
+    fn written_frames() {
+        let scene =
+            std::env::var("SNELL_WRITTEN_SCENE").unwrap_or_else(|_| "scenes/pool.toml".to_string());
+        let figures = written_times(Path::new(&scene), WRITTEN_FRAMES, WRITTEN_PASSES).unwrap();
+        print!("{}", figures.to_text());
+    }
 
     /// Tuning aid: the exact surface's global bounds (slope, curvature, height range) that every
     /// visibility walk steps by, on frames of scenes/hard/wading_wake.toml:
