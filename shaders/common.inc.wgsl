@@ -4,6 +4,8 @@
 struct Frame {
     clip_from_world: mat4x4<f32>,
     world_from_clip: mat4x4<f32>,
+    // Frame t-1's camera (the frame's own where there is no t-1), for the motion vectors.
+    previous_clip_from_world: mat4x4<f32>,
     // xyz: eye position in world space.
     eye: vec4<f32>,
     // x, y: the frame's size in pixels; w: the first row drawn (a strip's; 0 for a whole frame).
@@ -156,4 +158,15 @@ fn shade_under(albedo_linear: vec3<f32>, normal: vec3<f32>, true_position: vec3<
     let lit = albedo_linear * (sun + ambient);
     let transmittance = exp(-sigma * water_path_m);
     return lit * transmittance + frame.scatter_color.xyz * (1.0 - transmittance);
+}
+
+// Screen motion in pixels (x right, y down) from frame t-1 to t between two interpolated clip
+// positions of the same point: now, and at t-1 through t-1's camera. Both are projected the same
+// way (camera.rs pixel_of), so strips, which move the viewport, need no offset.
+fn motion_px(clip_now: vec4<f32>, clip_before: vec4<f32>) -> vec2<f32> {
+    if (clip_before.w <= 1e-6) {
+        return vec2<f32>(0.0, 0.0);
+    }
+    let delta = clip_now.xy / clip_now.w - clip_before.xy / clip_before.w;
+    return vec2<f32>(delta.x * 0.5 * frame.viewport.x, -delta.y * 0.5 * frame.viewport.y);
 }

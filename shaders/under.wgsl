@@ -3,12 +3,13 @@
 
 struct UnderVertex {
     @location(0) virtual_position: vec3<f32>,
-    @location(1) true_position: vec3<f32>,
-    @location(2) normal: vec3<f32>,
-    @location(3) uv: vec2<f32>,
-    @location(4) material: u32,
-    @location(5) water_path_m: f32,
-    @location(6) flags: u32,
+    @location(1) previous_position: vec3<f32>,
+    @location(2) true_position: vec3<f32>,
+    @location(3) normal: vec3<f32>,
+    @location(4) uv: vec2<f32>,
+    @location(5) material: u32,
+    @location(6) water_path_m: f32,
+    @location(7) flags: u32,
 };
 
 struct UnderVarying {
@@ -22,6 +23,10 @@ struct UnderVarying {
     // Depth along the view axis of the virtual position (affine in world space, so perspective-
     // correct interpolation gives the virtual surface's depth exactly).
     @location(6) apparent_depth_m: f32,
+    // The clip position of the virtual vertex now and of t-1's virtual vertex through t-1's
+    // camera (motion vectors).
+    @location(7) clip_now: vec4<f32>,
+    @location(8) clip_before: vec4<f32>,
 };
 
 @vertex
@@ -35,6 +40,8 @@ fn vs_under(vertex: UnderVertex) -> UnderVarying {
     out.material = vertex.material;
     out.flags = vertex.flags;
     out.apparent_depth_m = view_depth(vertex.virtual_position);
+    out.clip_now = out.clip;
+    out.clip_before = frame.previous_clip_from_world * vec4<f32>(vertex.previous_position, 1.0);
     return out;
 }
 
@@ -47,6 +54,7 @@ fn fs_under(in: UnderVarying) -> Targets {
     // w is masked off: the depth is the membrane's, written by pass b.
     out.position = vec4<u32>(bitcast<vec3<u32>>(in.true_position), 0u);
     out.flags = flags_and_object(in.flags, in.material) | WATER_BIT;
-    out.extra = vec4<u32>(0u, 0u, 0u, bitcast<u32>(in.apparent_depth_m));
+    let motion = motion_px(in.clip_now, in.clip_before);
+    out.extra = vec4<u32>(bitcast<vec2<u32>>(motion), 0u, bitcast<u32>(in.apparent_depth_m));
     return out;
 }

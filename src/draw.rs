@@ -25,6 +25,8 @@ pub mod flag_bits {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct TrueVertex {
     pub position: [f32; 3],
+    /// Where this vertex was at frame t-1 (world space), for the motion vectors.
+    pub previous_position: [f32; 3],
     pub normal: [f32; 3],
     pub uv: [f32; 2],
     /// Index into [`FrameDraw::materials`].
@@ -38,6 +40,9 @@ pub struct TrueVertex {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct VirtualVertex {
     pub virtual_position: [f32; 3],
+    /// Where this vertex was drawn at frame t-1 (its virtual position then, world space), for
+    /// the motion vectors.
+    pub previous_position: [f32; 3],
     pub true_position: [f32; 3],
     pub normal: [f32; 3],
     pub uv: [f32; 2],
@@ -108,6 +113,9 @@ pub struct FrameDraw {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FrameView {
     pub camera: Camera,
+    /// Frame t-1's camera, through which the motion vectors project the vertices' previous
+    /// positions (the frame's own camera where there is no t-1).
+    pub previous_camera: Camera,
     pub lighting: Lighting,
     pub water: WaterOptics,
 }
@@ -156,6 +164,10 @@ pub struct RenderedFrame {
     /// keeps F as the Cryptomatte coverage, which is 1 there); empty when read from an EXR
     /// written before this layer existed.
     pub water_reflection: Vec<[f32; 4]>,
+    /// Screen motion in pixels from frame t-1 to t of what the pixel shows (x right, y down: the
+    /// pixel now minus where the same point was seen at t-1, through water too); 0 where nothing
+    /// is seen. Empty when not computed (the ray-traced methods) or read from an EXR without it.
+    pub motion_px: Vec<[f32; 2]>,
 }
 
 impl RenderedFrame {
@@ -178,6 +190,7 @@ impl RenderedFrame {
             object: Vec::new(),
             water_matte: Vec::new(),
             water_reflection: Vec::new(),
+            motion_px: Vec::new(),
         };
         for strip in strips {
             debug_assert_eq!(strip.width, width, "strips of one frame have one width");
@@ -185,6 +198,7 @@ impl RenderedFrame {
             frame.beauty_rgba.extend(strip.beauty_rgba);
             frame.depth_m.extend(strip.depth_m);
             frame.apparent_depth_m.extend(strip.apparent_depth_m);
+            frame.motion_px.extend(strip.motion_px);
             frame.position.extend(strip.position);
             frame.flags.extend(strip.flags);
             frame.object.extend(strip.object);

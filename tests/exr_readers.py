@@ -133,6 +133,11 @@ def main():
     # Sky and what is not seen.
     check(np.all(layer("Z")[empty] == SKY_DEPTH_M), "sky Z is 1e10")
     check(np.all(layer("ApparentDepth.Z")[index == 0] == SKY_DEPTH_M), "apparent depth 1e10 where nothing is seen")
+    for name in ("Motion.X", "Motion.Y"):
+        motion = layer(name)
+        check(np.all(np.isfinite(motion)), f"{name} is finite")
+        check(np.all(motion[index == 0] == 0), f"{name} is 0 where nothing is seen")
+        check(np.any(motion[index != 0] != 0), f"{name} moves where something is seen (the pool's waves)")
     for axis in "XYZ":
         check(np.all(layer(f"P.{axis}")[index == 0] == 0), f"P.{axis} is 0 where nothing is seen")
     for channel in ("FlagConvergence.X", "FlagBoundary.X", "FlagPopping.X", "FlagExtrapolated.X"):

@@ -17,7 +17,7 @@ use std::sync::OnceLock;
 use snell::output::exr::read_channels;
 
 /// Every channel of a frame of `pool.toml` and its type, by the README's channel map.
-const EXPECTED: [(&str, &str); 28] = [
+const EXPECTED: [(&str, &str); 30] = [
     ("A", "f32"),
     ("ApparentDepth.Z", "f32"),
     ("B", "f32"),
@@ -34,6 +34,8 @@ const EXPECTED: [(&str, &str); 28] = [
     ("FlagPopping.X", "f16"),
     ("G", "f32"),
     ("IndexOB.X", "f32"),
+    ("Motion.X", "f32"),
+    ("Motion.Y", "f32"),
     ("P.X", "f32"),
     ("P.Y", "f32"),
     ("P.Z", "f32"),

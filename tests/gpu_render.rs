@@ -28,13 +28,15 @@ const WALL_Z_M: f32 = -1.0123457;
 const TEXEL_SRGB: [u8; 3] = [255, 255, 255];
 
 fn view() -> FrameView {
+    let camera = Camera {
+        eye: Vec3::new(0.3, 2.0, 6.0),
+        target: Vec3::new(0.0, 0.0, -4.0),
+        up: Vec3::Y,
+        fov_y_deg: 50.0,
+    };
     FrameView {
-        camera: Camera {
-            eye: Vec3::new(0.3, 2.0, 6.0),
-            target: Vec3::new(0.0, 0.0, -4.0),
-            up: Vec3::Y,
-            fov_y_deg: 50.0,
-        },
+        camera,
+        previous_camera: camera,
         lighting: Lighting {
             sky_zenith_linear: Vec3::new(0.2, 0.4, 0.9),
             sky_horizon_linear: Vec3::new(0.8, 0.85, 0.9),
@@ -162,6 +164,7 @@ fn frame_draw() -> FrameDraw {
         .iter()
         .map(|&p| TrueVertex {
             position: p.into(),
+            previous_position: p.into(),
             normal: [0.0, 0.0, 1.0],
             uv: [p.x, p.y],
             material: 0,
@@ -183,6 +186,7 @@ fn frame_draw() -> FrameDraw {
             let p = floor_corners[i as usize];
             VirtualVertex {
                 virtual_position: p.into(),
+                previous_position: p.into(),
                 true_position: p.into(),
                 normal: [0.0, 1.0, 0.0],
                 uv: [p.x * 0.5, p.z * 0.5],
@@ -637,6 +641,7 @@ fn heavy_draw(cells: usize, membrane_cells: usize) -> FrameDraw {
                 let p = corners[k as usize];
                 draw.under_vertices.push(VirtualVertex {
                     virtual_position: p.into(),
+                    previous_position: p.into(),
                     true_position: p.into(),
                     normal: [0.0, 1.0, 0.0],
                     uv: [p.x, p.z],

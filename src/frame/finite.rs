@@ -25,6 +25,9 @@ pub fn first_non_finite(frame: &RenderedFrame) -> Option<(u32, u32, &'static str
         if let Some(&m) = frame.water_matte.get(index) {
             samples.push(("WaterMatte", m));
         }
+        if let Some(m) = frame.motion_px.get(index) {
+            samples.extend(["Motion.X", "Motion.Y"].into_iter().zip(*m));
+        }
         if let Some(r) = frame.water_reflection.get(index) {
             samples.extend(
                 [
@@ -67,6 +70,7 @@ mod tests {
             object: vec![1, NO_OBJECT, NO_OBJECT, 2],
             water_matte: vec![0.0, 0.0, 1.0, 0.0],
             water_reflection: vec![[0.0; 4], [0.0; 4], [0.1, 0.1, 0.1, 0.02], [0.0; 4]],
+            motion_px: vec![[0.5, -2.0], [0.0; 2], [0.0; 2], [1.0, 0.0]],
         }
     }
 

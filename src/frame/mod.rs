@@ -681,6 +681,7 @@ impl RenderJob {
         };
         let view = FrameView {
             camera,
+            previous_camera: previous.map_or(camera, |p| p.camera),
             lighting: self.scene.lighting(),
             water: self.scene.water_optics(),
         };

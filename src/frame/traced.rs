@@ -60,6 +60,7 @@ impl RenderJob {
             draw,
             view: FrameView {
                 camera,
+                previous_camera: camera,
                 lighting: self.scene.lighting(),
                 water: self.scene.water_optics(),
             },
@@ -69,6 +70,9 @@ impl RenderJob {
                 grid: inputs.membrane.grid,
                 image_size,
                 vertices: Vec::new(),
+                camera,
+                drawn_positions: Vec::new(),
+                true_positions: Vec::new(),
             },
             stage_secs,
             trace: Some(inputs),

@@ -105,6 +105,7 @@ pub enum GpuError {
 struct FrameUniform {
     clip_from_world: [[f32; 4]; 4],
     world_from_clip: [[f32; 4]; 4],
+    previous_clip_from_world: [[f32; 4]; 4],
     eye: [f32; 4],
     viewport: [f32; 4],
     sky_zenith: [f32; 4],
@@ -134,6 +135,10 @@ impl FrameUniform {
         FrameUniform {
             clip_from_world: clip_from_world.to_cols_array_2d(),
             world_from_clip: clip_from_world.inverse().to_cols_array_2d(),
+            previous_clip_from_world: view
+                .previous_camera
+                .clip_from_world(width, height)
+                .to_cols_array_2d(),
             eye: vec4(view.camera.eye, 1.0),
             viewport: [width as f32, height as f32, 0.0, first_row as f32],
             sky_zenith: vec4(lighting.sky_zenith_linear, 0.0),
@@ -391,13 +396,16 @@ fn create_pipelines(
     let above_layout = wgpu::VertexBufferLayout {
         array_stride: std::mem::size_of::<TrueVertex>() as u64,
         step_mode: wgpu::VertexStepMode::Vertex,
-        attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x2, 3 => Uint32],
+        attributes: &wgpu::vertex_attr_array![
+            0 => Float32x3, 1 => Float32x3, 2 => Float32x3, 3 => Float32x2, 4 => Uint32
+        ],
     };
     let under_layout = wgpu::VertexBufferLayout {
         array_stride: std::mem::size_of::<VirtualVertex>() as u64,
         step_mode: wgpu::VertexStepMode::Vertex,
         attributes: &wgpu::vertex_attr_array![
-            0 => Float32x3, 1 => Float32x3, 2 => Float32x3, 3 => Float32x2, 4 => Uint32, 5 => Float32, 6 => Uint32
+            0 => Float32x3, 1 => Float32x3, 2 => Float32x3, 3 => Float32x3, 4 => Float32x2,
+            5 => Uint32, 6 => Float32, 7 => Uint32
         ],
     };
     let membrane_layout = wgpu::VertexBufferLayout {

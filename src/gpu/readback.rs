@@ -257,6 +257,7 @@ fn unpack_frame(bytes: &[u8], targets: &FrameTargets, rows: u32) -> RenderedFram
         object: vec![0; pixel_count],
         water_matte: vec![0.0; pixel_count],
         water_reflection: vec![[0.0; 4]; pixel_count],
+        motion_px: vec![[0.0; 2]; pixel_count],
     };
     let row_of = |image: usize, y: usize| {
         let pitch = padded_bytes_per_row(targets.width, targets.bytes_per_pixel[image]) as usize;
@@ -269,7 +270,12 @@ fn unpack_frame(bytes: &[u8], targets: &FrameTargets, rows: u32) -> RenderedFram
         .par_chunks_mut(width)
         .zip(frame.position.par_chunks_mut(width))
         .zip(frame.depth_m.par_chunks_mut(width))
-        .zip(frame.apparent_depth_m.par_chunks_mut(width))
+        .zip(
+            frame
+                .apparent_depth_m
+                .par_chunks_mut(width)
+                .zip(frame.motion_px.par_chunks_mut(width)),
+        )
         .zip(frame.flags.par_chunks_mut(width))
         .zip(frame.object.par_chunks_mut(width))
         .zip(frame.water_matte.par_chunks_mut(width))
@@ -278,7 +284,10 @@ fn unpack_frame(bytes: &[u8], targets: &FrameTargets, rows: u32) -> RenderedFram
         .for_each(
             |(
                 y,
-                (((((((beauty, position), depth), apparent), flags), object), matte), reflection),
+                (
+                    ((((((beauty, position), depth), (apparent, motion)), flags), object), matte),
+                    reflection,
+                ),
             )| {
                 let row = row_of(BEAUTY, y);
                 if half_beauty {
@@ -300,8 +309,12 @@ fn unpack_frame(bytes: &[u8], targets: &FrameTargets, rows: u32) -> RenderedFram
                     *out = std::array::from_fn(|c| float(pixel, 4 * c));
                     *depth = float(pixel, 12);
                 }
-                for (apparent, pixel) in apparent.iter_mut().zip(row_of(EXTRA, y).chunks_exact(16))
+                for ((apparent, motion), pixel) in apparent
+                    .iter_mut()
+                    .zip(motion.iter_mut())
+                    .zip(row_of(EXTRA, y).chunks_exact(16))
                 {
+                    *motion = [float(pixel, 0), float(pixel, 4)];
                     *apparent = float(pixel, 12);
                 }
                 let reflections = row_of(REFLECTION, y).chunks_exact(16);

@@ -401,6 +401,8 @@ pub fn trace_frame(scene: &TraceScene, width: u32, height: u32) -> TracedFrame {
             .iter()
             .map(|s| s.water_reflection.unwrap_or(Vec4::ZERO).to_array())
             .collect(),
+        // The tracer follows one frame's rays: no motion vectors (the GPU methods write them).
+        motion_px: Vec::new(),
     };
     let stats = TraceStats {
         primary_rays: pixels as u64,
@@ -559,6 +561,7 @@ mod tests {
                 membrane: &self.membrane,
                 view: FrameView {
                     camera: self.camera,
+                    previous_camera: self.camera,
                     lighting: lighting(),
                     water: water(),
                 },

@@ -7,9 +7,10 @@
 //! rendered alone computes frame t-1's state by running the same geometry function at t-1
 //! (`virtual_geometry::tracking_state`), and gets exactly what a sequential render carried over.
 
-use glam::Vec2;
+use glam::{Vec2, Vec3};
 use serde::Serialize;
 
+use crate::camera::Camera;
 use crate::water::MembraneGrid;
 
 /// How the drawn image is chosen where a vertex has several (a zone of convergence). Written into
@@ -97,6 +98,15 @@ pub struct TrackingState {
     pub image_size: (u32, u32),
     /// `vertices[object][vertex]`.
     pub vertices: Vec<Vec<TrackedVertex>>,
+    /// The frame's camera, which projects [`Self::drawn_positions`] to the screen (motion vectors).
+    pub camera: Camera,
+    /// `drawn_positions[object][vertex]`: where each original mesh vertex was drawn this frame
+    /// (its true position above or on the water, its drawn virtual position under it), for the
+    /// motion vectors of frame t+1.
+    pub drawn_positions: Vec<Vec<Vec3>>,
+    /// `true_positions[object][vertex]`: each original mesh vertex's true position this frame
+    /// (a water-line crossing of frame t+1 starts its motion on its edge between these).
+    pub true_positions: Vec<Vec<Vec3>>,
 }
 
 impl TrackingState {
@@ -108,6 +118,17 @@ impl TrackingState {
 
     pub fn vertex(&self, object: usize, vertex: usize) -> Option<TrackedVertex> {
         self.vertices.get(object)?.get(vertex).copied()
+    }
+
+    /// Where original vertex `vertex` of `object` was drawn this frame (motion vectors); `None`
+    /// if the object or vertex did not exist.
+    pub fn drawn_position(&self, object: usize, vertex: usize) -> Option<Vec3> {
+        self.drawn_positions.get(object)?.get(vertex).copied()
+    }
+
+    /// Original vertex `vertex` of `object`'s true position this frame.
+    pub fn true_position(&self, object: usize, vertex: usize) -> Option<Vec3> {
+        self.true_positions.get(object)?.get(vertex).copied()
     }
 }
 

@@ -52,6 +52,10 @@ pub struct SplitVertex {
 pub struct SplitMesh {
     pub vertices: Vec<SplitVertex>,
     pub original_vertex_count: usize,
+    /// For each crossing `vertices[original_vertex_count + i]`: the edge it cuts, as (under-water
+    /// end, other end, s), the crossing being at `lerp(under, other, s)` (motion vectors carry a
+    /// crossing's previous position along the same edge).
+    pub crossing_edges: Vec<(u32, u32, f32)>,
     /// Counter-clockwise as in the source mesh.
     pub above_triangles: Vec<[u32; 3]>,
     pub below_triangles: Vec<[u32; 3]>,
@@ -135,6 +139,7 @@ pub fn split_mesh(mesh: &Mesh, water: &WaterVolume) -> SplitMesh {
     let mut below_triangles = Vec::new();
     // Crossing vertex per edge (smaller index first), so both triangles on an edge share it.
     let mut crossings: std::collections::HashMap<(u32, u32), u32> = Default::default();
+    let mut crossing_edges = Vec::new();
 
     for &triangle in &mesh.triangles {
         let sides = triangle.map(|i| vertices[i as usize].side);
@@ -176,6 +181,7 @@ pub fn split_mesh(mesh: &Mesh, water: &WaterVolume) -> SplitMesh {
                     } else {
                         (b, a)
                     };
+                    let (under_index, over_index) = (under, over);
                     let (under, over) = (vertices[under as usize], vertices[over as usize]);
                     let s = water.crossing(under.position.as_dvec3(), over.position.as_dvec3());
                     let position = under.position.as_dvec3().lerp(over.position.as_dvec3(), s);
@@ -189,6 +195,7 @@ pub fn split_mesh(mesh: &Mesh, water: &WaterVolume) -> SplitMesh {
                         side: water.side_of(position),
                     };
                     vertices.push(new_vertex);
+                    crossing_edges.push((under_index, over_index, s));
                     (vertices.len() - 1) as u32
                 });
                 above_polygon.push(crossing);
@@ -201,6 +208,7 @@ pub fn split_mesh(mesh: &Mesh, water: &WaterVolume) -> SplitMesh {
     SplitMesh {
         vertices,
         original_vertex_count,
+        crossing_edges,
         above_triangles,
         below_triangles,
     }

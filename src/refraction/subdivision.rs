@@ -51,6 +51,9 @@ pub struct SubdivisionVertex {
     pub normal: Vec3,
     pub uv: Vec2,
     pub virtual_position: Vec3,
+    /// Where the vertex was drawn at frame t-1 (motion vectors): a split edge's midpoint takes
+    /// the mean of its ends', a linear estimate.
+    pub previous_position: Vec3,
     pub water_path_m: f32,
     /// The exact sight point's (x, z); `None` when the drawn position is not exact (a Newton
     /// fallback or no image): edges ending there are never split.
@@ -199,6 +202,7 @@ impl Subdivider<'_> {
             normal: (a.normal + b.normal).normalize_or(a.normal),
             uv: 0.5 * (a.uv + b.uv),
             virtual_position,
+            previous_position: 0.5 * (a.previous_position + b.previous_position),
             water_path_m,
             sight_xz: Some(sight_xz),
             on_surface: false,

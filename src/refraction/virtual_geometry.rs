@@ -260,6 +260,9 @@ pub fn build_virtual_geometry_with(
     let eye = field.setup.eye.as_dvec3();
     let (n_above, n_below) = (field.setup.n_above as f64, field.setup.n_below as f64);
     let (width, height) = request.image_size;
+    // Motion vectors compare world positions, which stay comparable when the grid or image size
+    // changes; popping compares facets and pixels, which do not.
+    let motion_previous = previous;
     let previous = previous.filter(|p| p.is_comparable(&membrane.grid, request.image_size));
     let answers: Vec<(ResolvedVertex, TrackedVertex)> = queries
         .par_iter()
@@ -346,6 +349,40 @@ pub fn build_virtual_geometry_with(
         vertex_counts.newton_fallback += u64::from(answer.newton_fallback);
     }
 
+    // Where every split vertex is drawn this frame, and where it was drawn at t-1.
+    let drawn: Vec<Vec<Vec3>> = splits
+        .iter()
+        .zip(&resolved)
+        .map(|(split, resolved)| {
+            split
+                .vertices
+                .iter()
+                .zip(resolved)
+                .map(|(v, r)| r.map_or(v.position, |r| r.drawn_position))
+                .collect()
+        })
+        .collect();
+    let previous_drawn: Vec<Vec<Vec3>> = splits
+        .iter()
+        .zip(&drawn)
+        .enumerate()
+        .map(|(object, (split, drawn))| previous_positions(object, split, drawn, motion_previous))
+        .collect();
+    let drawn_positions: Vec<Vec<Vec3>> = splits
+        .iter()
+        .zip(&drawn)
+        .map(|(split, drawn)| drawn[..split.original_vertex_count].to_vec())
+        .collect();
+    let true_positions: Vec<Vec<Vec3>> = splits
+        .iter()
+        .map(|split| {
+            split.vertices[..split.original_vertex_count]
+                .iter()
+                .map(|v| v.position)
+                .collect()
+        })
+        .collect();
+
     let mut above_vertices = Vec::new();
     let mut above_indices = Vec::new();
     let mut under_vertices = Vec::new();
@@ -363,6 +400,7 @@ pub fn build_virtual_geometry_with(
         append_above(
             object as u32,
             split,
+            &previous_drawn[object],
             &skirt,
             &mut above_vertices,
             &mut above_indices,
@@ -371,6 +409,7 @@ pub fn build_virtual_geometry_with(
             object as u32,
             split,
             &resolved[object],
+            &previous_drawn[object],
             subdivider.as_ref(),
             &skirt,
             &mut under_vertices,
@@ -386,8 +425,40 @@ pub fn build_virtual_geometry_with(
             grid: membrane.grid,
             image_size: request.image_size,
             vertices: tracking,
+            camera: request.camera,
+            drawn_positions,
+            true_positions,
         },
     }
+}
+
+/// Where each split vertex of `object` was drawn at frame t-1 (the motion vectors' start): an
+/// original vertex where t-1's tracking state says; a crossing (new each frame, on the water
+/// line: its own image) at the same parameter along its edge between its ends' TRUE t-1
+/// positions, as if it were still on the water line at t-1 (exact for still water); with no t-1
+/// state (the timeline's first frame), or for a vertex t-1 did not have, where it is drawn now
+/// (no motion).
+fn previous_positions(
+    object: usize,
+    split: &SplitMesh,
+    drawn: &[Vec3],
+    previous: Option<&TrackingState>,
+) -> Vec<Vec3> {
+    let Some(previous) = previous else {
+        return drawn.to_vec();
+    };
+    let mut out: Vec<Vec3> = (0..split.original_vertex_count)
+        .map(|v| previous.drawn_position(object, v).unwrap_or(drawn[v]))
+        .collect();
+    for &(under, over, s) in &split.crossing_edges {
+        let true_before = |v: u32| {
+            previous
+                .true_position(object, v as usize)
+                .unwrap_or(split.vertices[v as usize].position)
+        };
+        out.push(true_before(under).lerp(true_before(over), s));
+    }
+    out
 }
 
 /// Frame t's tracking state alone: exactly the `tracking` [`build_virtual_geometry`] returns for
@@ -445,6 +516,7 @@ impl<'a> WaterlineSkirt<'a> {
 fn append_above(
     object: u32,
     split: &SplitMesh,
+    previous: &[Vec3],
     skirt: &WaterlineSkirt,
     vertices: &mut Vec<TrueVertex>,
     indices: &mut Vec<u32>,
@@ -455,12 +527,16 @@ fn append_above(
         for &i in triangle {
             if remap[i as usize] == u32::MAX {
                 let mut v = split.vertices[i as usize];
+                let mut previous_position = previous[i as usize];
                 if v.side == Side::Surface {
-                    v.position.y -= skirt.below_m(v.position);
+                    let below_m = skirt.below_m(v.position);
+                    v.position.y -= below_m;
+                    previous_position.y -= below_m;
                 }
                 remap[i as usize] = vertices.len() as u32;
                 vertices.push(TrueVertex {
                     position: v.position.to_array(),
+                    previous_position: previous_position.to_array(),
                     normal: v.normal.to_array(),
                     uv: v.uv.to_array(),
                     material: object,
@@ -477,6 +553,7 @@ fn append_under(
     object: u32,
     split: &SplitMesh,
     resolved: &[Option<ResolvedVertex>],
+    previous: &[Vec3],
     subdivider: Option<&Subdivider>,
     skirt: &WaterlineSkirt,
     out: &mut Vec<VirtualVertex>,
@@ -535,6 +612,7 @@ fn append_under(
                 normal: v.normal,
                 uv: v.uv,
                 virtual_position,
+                previous_position: previous[i as usize],
                 water_path_m,
                 sight_xz,
                 on_surface: v.side == Side::Surface,
@@ -546,11 +624,15 @@ fn append_under(
     let mut push = |corners: &[SubdivisionVertex; 3], flags: u32| {
         for v in corners {
             let mut virtual_position = v.virtual_position;
+            let mut previous_position = v.previous_position;
             if v.on_surface {
-                virtual_position.y += skirt.above_m(v.position);
+                let above_m = skirt.above_m(v.position);
+                virtual_position.y += above_m;
+                previous_position.y += above_m;
             }
             out.push(VirtualVertex {
                 virtual_position: virtual_position.to_array(),
+                previous_position: previous_position.to_array(),
                 true_position: v.position.to_array(),
                 normal: v.normal.to_array(),
                 uv: v.uv.to_array(),

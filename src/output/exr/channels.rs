@@ -31,6 +31,12 @@ pub const BEAUTY: [&str; 4] = ["R", "G", "B", "A"];
 pub const DEPTH: &str = "Z";
 /// Depth along the view axis of what the pixel shows (the virtual image through water).
 pub const APPARENT_DEPTH: &str = "ApparentDepth.Z";
+/// Screen motion of what the pixel shows from frame t-1 to t, in pixels: x to the right, y down
+/// (the pixel now minus where the same point, seen through the water too, was at t-1); 0 where
+/// nothing is seen and on the timeline's first frame. Derived, not checked in those tools: Blender's
+/// `Vector.X, Vector.Y` (Cycles stores now minus before, rows counted up) are `Motion.X, -Motion.Y`;
+/// Nuke's `backward` (toward t-1, y up) is `-Motion.X, Motion.Y`.
+pub const MOTION: [&str; 2] = ["Motion.X", "Motion.Y"];
 /// True world position of what the pixel shows.
 pub const POSITION: [&str; 3] = ["P.X", "P.Y", "P.Z"];
 /// Scene object index (1-based) of what the pixel shows, 0 for none.
@@ -89,11 +95,12 @@ pub enum Layer {
     FlagBoundary,
     FlagPopping,
     FlagExtrapolated,
+    Motion,
 }
 
 impl Layer {
     /// Every layer, in the map's order.
-    pub const ALL: [Layer; 14] = [
+    pub const ALL: [Layer; 15] = [
         Layer::Beauty,
         Layer::Depth,
         Layer::ApparentDepth,
@@ -108,6 +115,7 @@ impl Layer {
         Layer::FlagBoundary,
         Layer::FlagPopping,
         Layer::FlagExtrapolated,
+        Layer::Motion,
     ];
 
     /// The name `--layers` takes and `snell.output` gives.
@@ -127,6 +135,7 @@ impl Layer {
             Layer::FlagBoundary => "FlagBoundary",
             Layer::FlagPopping => "FlagPopping",
             Layer::FlagExtrapolated => "FlagExtrapolated",
+            Layer::Motion => "Motion",
         }
     }
 
@@ -269,8 +278,8 @@ pub const LAYERS: &[LayerRow] = &[
     row("FlagBoundary.X"),
     row("FlagPopping.X"),
     row("FlagExtrapolated.X"),
+    row("Motion.X, Motion.Y"),
     reserved("Pref.X, Pref.Y, Pref.Z", "14 point 2"),
-    reserved("Motion.X, Motion.Y", "14 point 2"),
     reserved("CryptoObject01.R, .G, .B, .A", "16"),
     reserved("SceneReflection.R, .G, .B", "16"),
     reserved("Caustics.R, .G, .B", "16"),
@@ -357,6 +366,7 @@ mod tests {
             names.push(coverage);
         }
         names.extend(FLAG_CHANNELS.iter().map(|(name, _)| name.to_string()));
+        names.extend(MOTION.iter().map(|s| s.to_string()));
         names
     }
 
@@ -418,8 +428,8 @@ mod tests {
 
     #[test]
     fn an_unknown_layer_is_named_with_every_valid_one() {
-        let message = LayerSet::parse("Z,Motion").unwrap_err();
-        assert!(message.contains("unknown layer `Motion`"), "{message}");
+        let message = LayerSet::parse("Z,Vector").unwrap_err();
+        assert!(message.contains("unknown layer `Vector`"), "{message}");
         for name in ["all", "comp"]
             .into_iter()
             .chain(Layer::ALL.map(Layer::name))

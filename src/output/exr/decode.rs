@@ -251,6 +251,11 @@ pub fn read_frame_exr(path: &Path) -> Result<(RenderedFrame, ReadMeta), OutputEr
         }
     }
     let apparent_depth_m = floats(channels::APPARENT_DEPTH)?.unwrap_or_default();
+    let [mx, my] = channels::MOTION.map(floats);
+    let motion_px = match (mx?, my?) {
+        (Some(mx), Some(my)) => mx.into_iter().zip(my).map(|(x, y)| [x, y]).collect(),
+        _ => Vec::new(),
+    };
     let water_matte = match floats(channels::WATER_MATTE)? {
         Some(matte) => matte,
         None => legacy_water_matte,
@@ -279,6 +284,7 @@ pub fn read_frame_exr(path: &Path) -> Result<(RenderedFrame, ReadMeta), OutputEr
         object,
         water_matte,
         water_reflection,
+        motion_px,
     };
     Ok((frame, meta))
 }

@@ -313,6 +313,17 @@ fn frame_channels<'a>(
                 .for_each(|&d| push_f32(out, d))
         }));
     }
+    for (c, name) in MOTION
+        .into_iter()
+        .enumerate()
+        .filter(|_| !frame.motion_px.is_empty() && has(Layer::Motion))
+    {
+        list.push(ChannelSource::f32(name, move |y, out| {
+            frame.motion_px[row(y)]
+                .iter()
+                .for_each(|m| push_f32(out, m[c]))
+        }));
+    }
     if !frame.object.is_empty() && has(Layer::IndexOb) {
         list.push(ChannelSource::f32(INDEX_OB, move |y, out| {
             frame.object[row(y)]
