@@ -41,6 +41,7 @@ pub mod chart;
 pub mod check;
 pub mod color;
 pub mod draw;
+pub mod farm;
 pub mod files;
 pub mod frame;
 pub mod gpu;

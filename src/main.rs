@@ -26,6 +26,23 @@ struct Cli {
     command: Command,
 }
 
+/// `snell farm ...`.
+#[derive(Subcommand)]
+enum FarmCommand {
+    /// Write the shot's three Slurm jobs as #SBATCH scripts in OUT/farm/ and, with --submit,
+    /// submit them with sbatch: a simulation job (steps the ripples once and writes their
+    /// checkpoints), a job array of chunks `afterok` on it (task i renders chunk i into --out,
+    /// its log in OUT/farm/logs/chunk-<i>.log), and a check job `afterany` on the array (runs
+    /// after failures too; `snell farm check`). --dry-run prints the scripts. After failed or
+    /// cancelled tasks, --submit --resume submits only the chunks holding a missing or stale
+    /// frame. Example: snell farm slurm scenes/fox_wading.toml --chunk 12 --out /shared/fox --submit
+    Slurm(snell::farm::cli::SlurmArgs),
+    /// Check every frame of a shot: each EXR whole, made from this scene's inputs (the input
+    /// hash `snell render --resume` checks) and its report row present. Exit 0 when all are;
+    /// 1 naming each missing or bad frame and printing the command that re-renders exactly those.
+    Check(snell::farm::cli::CheckArgs),
+}
+
 #[derive(Subcommand)]
 enum Command {
     /// Render a scene's frames to OpenEXR (beauty, Z, true position P, flag masks) and a report.
@@ -238,6 +255,12 @@ enum Command {
     /// DCC tool, or render it elsewhere with the camera, to check snell's frames. Example:
     /// snell export scenes/pool.toml --frame 24 --out output/pool/export
     Export(snell::tools::cli::ExportArgs),
+    /// Render a shot on a farm: write (and submit) the scheduler's jobs, or check their frames.
+    ///
+    /// snell talks to no scheduler itself: it writes plain job files and calls the scheduler's
+    /// own commands (sbatch). `snell farm slurm --help` says what the three jobs do.
+    #[command(subcommand)]
+    Farm(FarmCommand),
     /// Chart speed against accuracy: render one frame with every method and several membrane
     /// resolutions, time each and measure its position error against the ray-traced reference.
     ///
@@ -379,6 +402,8 @@ fn run(cli: Cli) -> u8 {
         Command::Locate(args) => return snell::tools::cli::run_locate(&args),
         Command::Compare(args) => return snell::tools::cli::run_compare(&args),
         Command::Export(args) => return snell::tools::cli::run_export(&args),
+        Command::Farm(FarmCommand::Slurm(args)) => return snell::farm::cli::run_slurm(&args),
+        Command::Farm(FarmCommand::Check(args)) => return snell::farm::cli::run_check(&args),
         Command::Render {
             scene,
             frames,
