@@ -584,7 +584,7 @@ fn render(
     }
     for word in exr.command_words() {
         resume_command.push(' ');
-        resume_command.push_str(&shell_quoted(&word));
+        resume_command.push_str(&snell::farm::shell_word(&word));
     }
     let stop = match snell::interrupt::install(resume_command.clone()) {
         Ok(flag) => Some(flag),
@@ -715,21 +715,9 @@ fn resume_command_line(
     words.push("--resume".into());
     words
         .iter()
-        .map(|word| shell_quoted(word))
+        .map(|word| snell::farm::shell_word(word))
         .collect::<Vec<_>>()
         .join(" ")
-}
-
-fn shell_quoted(word: &str) -> String {
-    let plain = !word.is_empty()
-        && word
-            .chars()
-            .all(|c| c.is_ascii_alphanumeric() || "-_./:=,+@%".contains(c));
-    if plain {
-        word.to_string()
-    } else {
-        format!("'{}'", word.replace('\'', "'\\''"))
-    }
 }
 
 fn chart(

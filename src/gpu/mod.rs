@@ -1198,7 +1198,8 @@ mod tests {
 
     #[test]
     fn frame_uniform_matches_the_wgsl_struct_size() {
-        // 2 mat4x4 + 12 vec4 in shaders/common.inc.wgsl.
-        assert_eq!(std::mem::size_of::<FrameUniform>(), 2 * 64 + 12 * 16);
+        // 3 mat4x4 (clip_from_world, world_from_clip, previous_clip_from_world) + 12 vec4 in
+        // shaders/common.inc.wgsl's `Frame`.
+        assert_eq!(std::mem::size_of::<FrameUniform>(), 3 * 64 + 12 * 16);
     }
 }

@@ -182,7 +182,6 @@ mod tests {
     use super::*;
 
     #[test]
-    #[test]
     fn base64_round_trips_known_strings() {
         assert_eq!(decode_base64("TWFu").unwrap(), b"Man");
         assert_eq!(decode_base64("TWE=").unwrap(), b"Ma");
@@ -196,7 +195,6 @@ mod tests {
         assert!(decode_data_uri("data:text/plain,hello").is_err());
     }
 
-    #[test]
     #[test]
     fn uri_helpers() {
         assert_eq!(percent_decode("my%20model.bin"), "my model.bin");
