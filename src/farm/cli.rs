@@ -45,7 +45,8 @@ pub struct SlurmArgs {
     #[arg(long)]
     pub dry_run: bool,
     /// With --submit: submit only the chunks holding a missing or stale frame (the same test as
-    /// `snell render --resume`), and no simulation job when no chunk needs one.
+    /// `snell render --resume`); nothing when no chunk needs it. The simulation job is submitted
+    /// again with them (the array depends on it).
     #[arg(long)]
     pub resume: bool,
     /// The snell binary the nodes run (default: this one). It must be reachable on every node.
