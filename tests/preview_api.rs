@@ -385,8 +385,15 @@ fn a_render_worker_panic_fails_its_frame_at_once_and_the_worker_restarts() {
         ..Faults::default()
     };
     let server = start_with(&scene("pool.toml"), temp.path(), faults);
-    // The renderer is up once a frame is served.
+    // The renderer is up once a frame is served. Then wait until it is idle (no prefetch or
+    // timeline strip in flight): a render in progress is not interrupted, so otherwise the time
+    // below would measure how long that render takes on a loaded machine (1.15 s once in CI with
+    // the other tests running), not how fast a panic becomes a 500.
     png(&fetch(&server, "/api/frame/1.png"));
+    wait_until("the render worker is idle", || {
+        let scene = fetch(&server, "/api/scene").json().unwrap();
+        scene["worker_busy"] == false && scene["strips_done"] == true
+    });
     let asked = Instant::now();
     let message = error_of(&server, "/api/frame/30.png", 500);
     let waited = asked.elapsed();
