@@ -12,6 +12,8 @@ pub mod checkpoint;
 pub mod coupling;
 #[cfg(test)]
 mod physics_tests;
+#[cfg(test)]
+mod wake_tests;
 pub mod ripples;
 pub mod spectral;
 
