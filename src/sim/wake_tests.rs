@@ -10,10 +10,11 @@
 //! (Kelvin: walls 8 instead of 6 wavelengths from the track moved no ridge angle by more than
 //! 0.02 degrees; 32 instead of 22 wavelengths of travel, the start further away, by 0.13 at most).
 //!
-//! **The measurement.** Seen from the body, a steady wake is made only of waves whose crests run
-//! with it (`k_x > 0` toward its bow), so the modulus of each row's analytic signal along the
-//! track (one-sided spectrum in `k_x`) is the local amplitude of the wave pattern, of both wave
-//! systems together where they cross ([`Wake::envelope`]). Along arcs of radius `r` behind the
+//! **The measurement.** A steady wake is made only of waves whose crests cross the track (a wave
+//! stands still behind the body where its phase speed is `U cos theta`, so `k_x != 0`): keeping
+//! the `k_x > 0` half of each row's spectrum (the analytic signal along the track) gives the
+//! complex wave pattern, whose modulus is the local amplitude, of both wave systems together
+//! where they cross ([`Wake::envelope`]). Along arcs of radius `r` behind the
 //! body's centre, the outermost maximum of that envelope is the wake's ridge: outside it the
 //! pattern decays (exponentially past a caustic), inside it the wave systems beat. Its angle from
 //! the track is read at many radii, on both sides.
