@@ -41,6 +41,18 @@ enum FarmCommand {
     /// hash `snell render --resume` checks) and its report row present. Exit 0 when all are;
     /// 1 naming each missing or bad frame and printing the command that re-renders exactly those.
     Check(snell::farm::cli::CheckArgs),
+    /// Write the shot as an Open Job Description job template (jobtemplate-2023-09, as AWS
+    /// Deadline Cloud runs): steps Simulate, Render (one task per chunk, its frames the task
+    /// parameter Frames; depends on Simulate) and Check (depends on Render), into
+    /// OUT/farm/job.template.json. Validate with `openjd check FILE`; run here with
+    /// `openjd run FILE --run-dependencies --step Check`.
+    Openjd(snell::farm::cli::OpenjdArgs),
+    /// The farm's first job: step the scene's ripple simulation once, from the timeline's first
+    /// frame to the shot's last, and write every frame's checkpoint into the output folder
+    /// (OUT/.snell-sim/), rendering nothing. Chunks rendered into OUT then read their ripple states
+    /// there instead of each stepping from the first frame (their `snell render` says how many
+    /// frames it stepped: 0).
+    Simulate(snell::farm::cli::SimulateArgs),
 }
 
 #[derive(Subcommand)]
@@ -258,7 +270,8 @@ enum Command {
     /// Render a shot on a farm: write (and submit) the scheduler's jobs, or check their frames.
     ///
     /// snell talks to no scheduler itself: it writes plain job files and calls the scheduler's
-    /// own commands (sbatch). `snell farm slurm --help` says what the three jobs do.
+    /// own commands (sbatch, openjd). `snell farm slurm --help` says what the three jobs do;
+    /// the README's "On a render farm" section how to point them at shared storage.
     #[command(subcommand)]
     Farm(FarmCommand),
     /// Chart speed against accuracy: render one frame with every method and several membrane
@@ -404,6 +417,8 @@ fn run(cli: Cli) -> u8 {
         Command::Export(args) => return snell::tools::cli::run_export(&args),
         Command::Farm(FarmCommand::Slurm(args)) => return snell::farm::cli::run_slurm(&args),
         Command::Farm(FarmCommand::Check(args)) => return snell::farm::cli::run_check(&args),
+        Command::Farm(FarmCommand::Openjd(args)) => return snell::farm::cli::run_openjd(&args),
+        Command::Farm(FarmCommand::Simulate(args)) => return snell::farm::cli::run_simulate(&args),
         Command::Render {
             scene,
             frames,
@@ -643,6 +658,16 @@ fn render(
             } else {
                 format!("; kept {} complete frame(s)", outcome.skipped.len())
             }
+        );
+    }
+    if let Some(simulation) = &job.dynamics.simulation {
+        // What the checkpoints saved: on a farm, chunks after `snell farm simulate` step none.
+        errln!(
+            "ripples: stepped {} frame(s) of the simulation; every other state was read from the checkpoints in {}",
+            simulation.frames_stepped(),
+            simulation
+                .store()
+                .map_or_else(|| out_dir.display().to_string(), |s| s.dir().display().to_string())
         );
     }
     Ok(())

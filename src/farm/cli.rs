@@ -1,5 +1,6 @@
-//! `snell farm slurm`, `snell farm check` as the command line sees them. Exit codes: 0 done,
-//! 2 bad scene or arguments, 1 other failures (sbatch failing; for check, a missing or bad frame).
+//! `snell farm slurm`, `snell farm openjd`, `snell farm simulate` and `snell farm check` as the
+//! command line sees them. Exit codes: 0 done, 2 bad scene or arguments, 1 other failures (sbatch
+//! failing; for check, a missing or bad frame).
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -54,6 +55,37 @@ pub struct SlurmArgs {
     pub snell: Option<PathBuf>,
 }
 
+/// `snell farm openjd SCENE ...`.
+#[derive(clap::Args, Clone, Debug)]
+pub struct OpenjdArgs {
+    #[command(flatten)]
+    pub shot: ShotArgs,
+    /// Frames per task of the Render step.
+    #[arg(long, value_name = "N", default_value_t = 10)]
+    pub chunk: usize,
+    /// The snell binary the workers run (default: this one). It must be reachable on every worker.
+    #[arg(long, value_name = "PATH")]
+    pub snell: Option<PathBuf>,
+    /// Where to write the template (default: OUT/farm/job.template.json); `-` prints it.
+    #[arg(long, value_name = "FILE")]
+    pub template: Option<PathBuf>,
+}
+
+/// `snell farm simulate SCENE ...`.
+#[derive(clap::Args, Clone, Debug)]
+pub struct SimulateArgs {
+    /// The scene file (TOML).
+    pub scene: PathBuf,
+    /// Frames of the shot, as `snell render --frames`: the ripples are stepped from the timeline's
+    /// first frame to the last of these (default: the scene's whole timeline).
+    #[arg(long, value_name = "LIST")]
+    pub frames: Option<String>,
+    /// The shared output folder (or file pattern) the chunks render into, as `snell render
+    /// --out`; the checkpoints go in its folder's .snell-sim/ (default: output/<scene name>/).
+    #[arg(long, value_name = "DIR|PATTERN")]
+    pub out: Option<PathBuf>,
+}
+
 /// `snell farm check SCENE ...`.
 #[derive(clap::Args, Clone, Debug)]
 pub struct CheckArgs {
@@ -99,8 +131,9 @@ fn load(args: &ShotArgs) -> Result<Loaded, SnellError> {
     })
 }
 
+/// Which frames are missing or stale; reads the folder, creates nothing in it.
 fn plan(loaded: &Loaded) -> Result<ResumePlan, SnellError> {
-    let report = ReportWriter::create(loaded.output.dir())?;
+    let report = ReportWriter::read(loaded.output.dir())?;
     Ok(plan_resume(
         &loaded.job,
         &loaded.frames,
@@ -139,7 +172,12 @@ pub fn run_check(args: &CheckArgs) -> u8 {
             );
             return Ok(0);
         }
-        outln!("check: {}", plan.summary());
+        outln!(
+            "check: {} of {} frame(s) missing or bad: {}",
+            plan.render.len(),
+            plan.render.len() + plan.skip.len(),
+            plan.reasons()
+        );
         let bad: Vec<u32> = plan.render.iter().map(|(frame, _)| *frame).collect();
         let shot = shot(&loaded, 1, None, None)?;
         outln!("re-render with: {}", shot.render_command(&frames_arg(&bad)));
@@ -227,10 +265,7 @@ pub fn run_slurm(args: &SlurmArgs) -> u8 {
             ))
         })?;
         for (name, text) in &scripts {
-            let path = dir.join(name);
-            std::fs::write(&path, text).map_err(|error| {
-                SnellError::Argument(format!("{}: cannot write: {error}", path.display()))
-            })?;
+            write_file(&dir.join(name), text)?;
         }
         let submitted = (|| -> Result<(String, String, String), String> {
             let simulation = sbatch(&[], &dir.join("simulation.sbatch"))?;
@@ -258,6 +293,116 @@ pub fn run_slurm(args: &SlurmArgs) -> u8 {
         outln!("chunk array job {array} (tasks {})", array_list(&chunks));
         outln!("check job {check}");
         outln!("logs: {}", shot.log_dir().display());
+        Ok(0)
+    })())
+}
+
+/// `snell farm openjd`: writes the shot's job template (see [`super::openjd`]).
+pub fn run_openjd(args: &OpenjdArgs) -> u8 {
+    exit_code((|| {
+        if args.chunk == 0 {
+            return Err(SnellError::Argument(
+                "--chunk 0: a chunk needs frames, e.g. --chunk 10".into(),
+            ));
+        }
+        let loaded = load(&args.shot)?;
+        let shot = shot(&loaded, args.chunk, None, args.snell.clone())?;
+        let text = serde_json::to_string_pretty(&shot.openjd_template())
+            .expect("a JSON value serialises")
+            + "\n";
+        let path = match &args.template {
+            Some(path) if path.as_os_str() == "-" => {
+                outln!("{}", text.trim_end());
+                return Ok(0);
+            }
+            Some(path) => path.clone(),
+            None => shot.job_dir().join("job.template.json"),
+        };
+        write_file(&path, &text)?;
+        outln!(
+            "wrote {} (steps Simulate, Render: {} chunk(s) as task parameter Frames, Check)",
+            path.display(),
+            shot.chunks.len()
+        );
+        outln!("check it with: openjd check {}", shell_path(&path));
+        outln!(
+            "run it here with: openjd run {} --run-dependencies --step Check",
+            shell_path(&path)
+        );
+        Ok(0)
+    })())
+}
+
+/// Writes `text` to `path` whole or not at all (a temporary file renamed into place).
+fn write_file(path: &Path, text: &str) -> Result<(), SnellError> {
+    use std::io::Write;
+    crate::output::write_atomically(path, |file| {
+        file.write_all(text.as_bytes())
+            .map_err(|error| error.to_string())
+    })?;
+    Ok(())
+}
+
+fn shell_path(path: &Path) -> String {
+    super::shell_word(&path.to_string_lossy())
+}
+
+/// `snell farm simulate`: steps the scene's ripples from the timeline's first frame to the shot's
+/// last and writes the checkpoint of every frame into the output folder, rendering nothing.
+pub fn run_simulate(args: &SimulateArgs) -> u8 {
+    exit_code((|| {
+        let loaded = load(&ShotArgs {
+            scene: args.scene.clone(),
+            frames: args.frames.clone(),
+            out: args.out.clone(),
+            size: "1x1".into(),
+        })?;
+        let job = &loaded.job;
+        let Some(simulation) = &job.dynamics.simulation else {
+            outln!(
+                "simulate: {} has no ripples (water.ripples is off): nothing to step, the chunks need no checkpoints",
+                job.scene_name()
+            );
+            return Ok(0);
+        };
+        let out_dir = loaded.output.dir();
+        crate::output::ensure_output_dir(out_dir)?;
+        crate::output::check_writable(out_dir)?;
+        if let Some(text) = job.use_checkpoints(out_dir)? {
+            errln!("note: {text}");
+        }
+        // Frames come within the timeline, so from its first frame to the last of them.
+        let first = job.timeline().first_frame;
+        let last = loaded
+            .frames
+            .iter()
+            .copied()
+            .max()
+            .unwrap_or(first)
+            .max(first);
+        let started = std::time::Instant::now();
+        let bar = crate::frame::progress_bar(u64::from(last - first) + 1, true);
+        bar.set_message("ripples");
+        // Frame by frame (each step from the state in memory), so the bar moves; every state
+        // stepped is written as a checkpoint, and one already there is read instead.
+        for frame in first..=last {
+            let time_secs = job.scene.timeline.time_secs(frame);
+            let posed = job.dynamics.posed_objects(time_secs);
+            job.dynamics
+                .ripples_at(&job.scene, &job.waves, frame, &posed)?;
+            bar.inc(1);
+        }
+        bar.finish_and_clear();
+        let dir = simulation
+            .store()
+            .map_or_else(|| out_dir.to_path_buf(), |store| store.dir().to_path_buf());
+        outln!(
+            "simulate: ripples of {} at frames {first}-{last} checkpointed in {} ({} frame(s) stepped, the rest already there; {:.1} s)",
+            job.scene_name(),
+            dir.display(),
+            simulation.frames_stepped(),
+            started.elapsed().as_secs_f64()
+        );
         Ok(0)
     })())
 }

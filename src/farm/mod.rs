@@ -3,15 +3,15 @@
 //! files and calls `sbatch` (see [`cli`]).
 //!
 //! The three jobs:
-//! 1. simulation: steps the ripples once over the whole range, writing every checkpoint the chunks
-//!    will need into the output folder (it renders the range's last frame, which steps the
-//!    simulation from the first);
+//! 1. simulation: `snell farm simulate`, which steps the ripples once over the whole range and
+//!    writes the checkpoint of every frame (all the chunks will read) into the output folder;
 //! 2. chunks: a job array, one task per chunk of frames, `afterok` on the simulation, each task
 //!    `snell render --frames <its chunk>` into the shared folder, its log named after its index;
 //! 3. check: `afterany` on the array (so it runs after failures too), `snell farm check`, which
 //!    exits non-zero naming every missing or bad frame and the command that re-renders them.
 
 pub mod cli;
+pub mod openjd;
 
 use std::path::{Path, PathBuf};
 
@@ -99,23 +99,46 @@ impl Shot {
         )
     }
 
-    fn name(&self) -> String {
+    pub fn name(&self) -> String {
         self.scene
             .file_stem()
             .map_or_else(|| "shot".into(), |s| s.to_string_lossy().into_owned())
     }
 
-    /// The simulation job: renders the last frame, stepping the ripples over the whole range and
-    /// writing their checkpoints.
+    /// `snell farm simulate` of the whole shot into the shared folder, as a bash command line:
+    /// steps the ripples once and writes the checkpoint of every frame.
+    pub fn simulate_command(&self) -> String {
+        format!(
+            "{} farm simulate {} --frames {} --out {}",
+            path_word(&self.snell),
+            path_word(&self.scene),
+            shell_word(&frames_arg(&self.frames)),
+            path_word(&self.out),
+        )
+    }
+
+    /// `snell farm check` of the whole shot, as a bash command line.
+    pub fn check_command(&self) -> String {
+        format!(
+            "{} farm check {} --frames {} --out {} --size {}",
+            path_word(&self.snell),
+            path_word(&self.scene),
+            shell_word(&frames_arg(&self.frames)),
+            path_word(&self.out),
+            shell_word(&self.size)
+        )
+    }
+
+    /// The simulation job: steps the ripples over the whole range, writing their checkpoints.
     pub fn simulation_script(&self) -> String {
-        let last = self.frames.last().copied().unwrap_or(0);
         let mut text = self.header(&format!("{}-sim", self.name()), "simulation.log");
         text.push_str(
-            "# Steps the ripple simulation once over the shot and writes its checkpoints into the\n\
-             # output folder (by rendering the last frame); the chunks then start from them.\n\
+            "# Steps the ripple simulation once over the shot and writes the checkpoint of every\n\
+             # frame into the output folder; each chunk then reads its states instead of stepping\n\
+             # from the first frame.\n\
              set -euo pipefail\n",
         );
-        text.push_str(&format!("{}\n", self.render_command(&last.to_string())));
+        text.push_str(&format!("{}\n", self.simulate_command()));
         text
     }
 
@@ -137,6 +160,9 @@ impl Shot {
         text.push_str(
             "  *) echo \"no chunk $SLURM_ARRAY_TASK_ID in this shot\" >&2; exit 2 ;;\nesac\n",
         );
+        text.push_str(
+            "echo \"chunk $SLURM_ARRAY_TASK_ID: frames $FRAMES on node ${SLURMD_NODENAME:-$(hostname)}\"\n",
+        );
         text.push_str(&format!(
             "{} render {} --frames \"$FRAMES\" --out {} --size {}\n",
             path_word(&self.snell),
@@ -156,14 +182,7 @@ impl Shot {
              # scene's inputs, report row present) and names any missing or bad one.\n\
              set -euo pipefail\n",
         );
-        text.push_str(&format!(
-            "{} farm check {} --frames {} --out {} --size {}\n",
-            path_word(&self.snell),
-            path_word(&self.scene),
-            shell_word(&frames_arg(&self.frames)),
-            path_word(&self.out),
-            shell_word(&self.size)
-        ));
+        text.push_str(&format!("{}\n", self.check_command()));
         text
     }
 
@@ -233,10 +252,10 @@ mod tests {
     }
 
     #[test]
-    fn simulation_renders_the_last_frame_and_check_covers_all() {
+    fn simulation_steps_the_whole_shot_and_check_covers_all() {
         let shot = shot();
         assert!(shot.simulation_script().contains(
-            "render 'scenes/fox wading.toml' --frames 7 --out /shared/shots/fox --size 160x90\n"
+            "/opt/snell/bin/snell farm simulate 'scenes/fox wading.toml' --frames 1-7 --out /shared/shots/fox\n"
         ));
         assert!(shot
             .check_script()

@@ -127,7 +127,16 @@ impl ResumePlan {
             text.push_str("; nothing to render");
             return text;
         }
-        text.push_str(&format!("; rendering {}:", self.render.len()));
+        text.push_str(&format!(
+            "; rendering {}: {}",
+            self.render.len(),
+            self.reasons()
+        ));
+        text
+    }
+
+    /// The frames to render grouped by reason: `2 missing (5-6), 1 unreadable (frame 9: ...)`.
+    pub fn reasons(&self) -> String {
         let with = |wanted: fn(&RenderReason) -> bool| -> Vec<u32> {
             self.render
                 .iter()
@@ -175,9 +184,7 @@ impl ResumePlan {
                 unreadable.join("; ")
             ));
         }
-        text.push(' ');
-        text.push_str(&groups.join(", "));
-        text
+        groups.join(", ")
     }
 }
 

@@ -63,6 +63,12 @@ impl ReportWriter {
     /// Opens the report of `dir` (creating `dir` if needed), loading the rows already there.
     pub fn create(dir: &Path) -> Result<Self, OutputError> {
         ensure_output_dir(dir)?;
+        Self::read(dir)
+    }
+
+    /// The report of `dir` as it is, creating nothing (no rows when the report or `dir` is
+    /// missing): for checks that must leave the folder untouched (`snell farm check`).
+    pub fn read(dir: &Path) -> Result<Self, OutputError> {
         let path = dir.join(REPORT_FILE_NAME);
         let rows_by_frame = match fs::read_to_string(&path) {
             Ok(contents) => parse_rows(&path, &contents)?,
