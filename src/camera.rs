@@ -1,9 +1,11 @@
-//! A pinhole camera at one instant: eye, target, up and vertical field of view, with the
-//! transforms the GPU passes and the popping test share (so both agree on pixel positions).
+//! A pinhole camera at one instant: eye, target, up, vertical field of view and clip planes, with
+//! the transforms the GPU passes and the popping test share (so both agree on pixel positions).
 
 use glam::{Mat4, Vec2, Vec3, Vec4Swizzles};
 
-/// Near and far clip distances in metres. The far plane is generous: pool scenes are tens of metres.
+/// Near and far clip distances in metres of a camera that states none (keyframed cameras; a glTF
+/// camera has its own `znear`, and its `zfar` when it has one). The far plane is generous: pool
+/// scenes are tens of metres.
 pub const NEAR_M: f32 = 0.05;
 pub const FAR_M: f32 = 1000.0;
 
@@ -13,6 +15,9 @@ pub struct Camera {
     pub target: Vec3,
     pub up: Vec3,
     pub fov_y_deg: f32,
+    /// Clip planes, as view depths in metres (0 < near < far).
+    pub near_m: f32,
+    pub far_m: f32,
 }
 
 /// A view closer to vertical than this angle (radians) has no roll defined by +y up: it takes
@@ -48,13 +53,16 @@ impl Camera {
         (point_in_world - self.eye).dot(self.forward())
     }
 
-    /// A camera at `eye` looking at `target`, with [`up_for_view`]'s up vector.
+    /// A camera at `eye` looking at `target`, with [`up_for_view`]'s up vector and the default
+    /// clip planes [`NEAR_M`] and [`FAR_M`].
     pub fn looking_at(eye: Vec3, target: Vec3, fov_y_deg: f32) -> Camera {
         Camera {
             eye,
             target,
             up: up_for_view(target - eye),
             fov_y_deg,
+            near_m: NEAR_M,
+            far_m: FAR_M,
         }
     }
 
@@ -82,8 +90,8 @@ impl Camera {
         glam::camera::rh::proj::directx::perspective(
             self.fov_y_deg.to_radians(),
             aspect,
-            NEAR_M,
-            FAR_M,
+            self.near_m,
+            self.far_m,
         )
     }
 
@@ -195,6 +203,8 @@ mod tests {
             target: Vec3::new(0.0, -1.0, 0.0),
             up: Vec3::Y,
             fov_y_deg: 50.0,
+            near_m: NEAR_M,
+            far_m: FAR_M,
         };
         let p = Vec3::new(0.7, -0.5, 1.2);
         let px = cam.pixel_of(p, 640, 360).unwrap();

@@ -442,6 +442,7 @@ fn every_shipped_scene_renders() {
             "cesium_submerged",
             "fox_wading",
             "pool",
+            "pool_gltf_camera",
             "post_breaking_surface",
             "tiny"
         ]

@@ -33,6 +33,8 @@ fn view() -> FrameView {
         target: Vec3::new(0.0, 0.0, -4.0),
         up: Vec3::Y,
         fov_y_deg: 50.0,
+        near_m: snell::camera::NEAR_M,
+        far_m: snell::camera::FAR_M,
     };
     FrameView {
         camera,

@@ -33,17 +33,14 @@ use container::{
 const INFLUENCE_SETS: u32 = 2;
 
 /// The nodes, each node's parent, and an order with parents before children.
-type NodeHierarchy = (Vec<Node>, Vec<Option<usize>>, Vec<usize>);
+pub(super) type NodeHierarchy = (Vec<Node>, Vec<Option<usize>>, Vec<usize>);
 
-/// What is carried through loading: the file (for messages), everything read, the warnings.
-struct Loader {
-    path: PathBuf,
-    files: Vec<PathBuf>,
-    warnings: Vec<String>,
-    buffers: Vec<Vec<u8>>,
-}
-
-pub(super) fn load(path: &Path) -> Result<CharacterAsset, CharacterError> {
+/// Reads and checks a glTF file as far as every reader needs it, whatever it is read for (a
+/// character, a camera): the file regular and within the size cap, the container, the JSON, the
+/// indices the `gltf` crate would panic on, the buffers read in full and every view and accessor
+/// inside them. Returns the loader (the file, the files read, the warnings, the buffers) and the
+/// document.
+pub(super) fn open(path: &Path) -> Result<(Loader, gltf::Document), CharacterError> {
     let bytes = crate::files::read_regular(path, crate::files::MAX_ASSET_BYTES)
         .map_err(CharacterError::File)?;
     let container = split_container(path, &bytes)?;
@@ -140,6 +137,19 @@ pub(super) fn load(path: &Path) -> Result<CharacterAsset, CharacterError> {
     loader.load_buffers(&document, &container)?;
     loader.check_views_and_accessors(&document)?;
 
+    Ok((loader, document))
+}
+
+/// What is carried through loading: the file (for messages), everything read, the warnings.
+pub(super) struct Loader {
+    pub(super) path: PathBuf,
+    pub(super) files: Vec<PathBuf>,
+    pub(super) warnings: Vec<String>,
+    buffers: Vec<Vec<u8>>,
+}
+
+pub(super) fn load(path: &Path) -> Result<CharacterAsset, CharacterError> {
+    let (mut loader, document) = open(path)?;
     let (nodes, parents, node_order) = loader.load_nodes(&document)?;
     let skins = loader.load_skins(&document)?;
 
@@ -238,7 +248,7 @@ fn dimensions_name(dimensions: Dimensions) -> &'static str {
 }
 
 impl Loader {
-    fn malformed(&self, reason: String) -> CharacterError {
+    pub(super) fn malformed(&self, reason: String) -> CharacterError {
         CharacterError::Malformed {
             path: self.path.clone(),
             reason,
@@ -477,7 +487,10 @@ impl Loader {
         }
     }
 
-    fn load_nodes(&self, document: &gltf::Document) -> Result<NodeHierarchy, CharacterError> {
+    pub(super) fn load_nodes(
+        &self,
+        document: &gltf::Document,
+    ) -> Result<NodeHierarchy, CharacterError> {
         let mut nodes = Vec::new();
         let mut parents: Vec<Option<usize>> = vec![None; document.nodes().len()];
         for node in document.nodes() {
@@ -595,7 +608,7 @@ impl Loader {
         Ok(skins)
     }
 
-    fn load_animations(
+    pub(super) fn load_animations(
         &mut self,
         document: &gltf::Document,
     ) -> Result<(Vec<Animation>, Vec<AnimationInfo>), CharacterError> {

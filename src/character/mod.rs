@@ -11,8 +11,12 @@
 //! 2. [`CharacterAsset::pose`] samples the animation (`animation.rs`) into node and joint matrices.
 //! 3. [`CharacterAsset::posed_primitives`] skins the vertices (linear blend skinning, rayon,
 //!    deterministic) or, for meshes without a skin, applies their node's global transform.
+//!
+//! The same reader gives a scene its camera from a glTF file ([`GltfCamera`], `camera.rs`): the
+//! file checked as above, a camera node's global transform animated like a character's nodes.
 
 mod animation;
+mod camera;
 mod load;
 mod skinning;
 
@@ -23,6 +27,7 @@ use glam::{Mat4, Quat, Vec3};
 
 use crate::mesh::{Mesh, Texture};
 
+pub use camera::{GltfCamera, GltfCameraError, Perspective};
 pub use skinning::Pose;
 
 /// Why a character file cannot be used. Every variant names the file and says the cause plainly.
@@ -223,44 +228,7 @@ impl CharacterAsset {
 
     /// The index of the selected animation, or an error that lists what the file has.
     pub fn resolve_animation(&self, selector: &AnimationSelector) -> Result<usize, CharacterError> {
-        match selector {
-            AnimationSelector::Index(index) => {
-                if *index < self.animation_infos.len() {
-                    Ok(*index)
-                } else {
-                    Err(CharacterError::AnimationIndexOutOfRange {
-                        path: self.path.clone(),
-                        index: *index,
-                        count: self.animation_infos.len(),
-                    })
-                }
-            }
-            AnimationSelector::Name(name) => self
-                .animation_infos
-                .iter()
-                .position(|info| info.name.as_deref() == Some(name.as_str()))
-                .ok_or_else(|| CharacterError::AnimationNotFound {
-                    path: self.path.clone(),
-                    name: name.clone(),
-                    available: self.animation_list(),
-                }),
-        }
-    }
-
-    /// "0: Survey, 1: Walk, 2: Run"; unnamed animations as "#i"; "(no animations)" when empty.
-    fn animation_list(&self) -> String {
-        if self.animation_infos.is_empty() {
-            return "(no animations)".to_string();
-        }
-        self.animation_infos
-            .iter()
-            .enumerate()
-            .map(|(index, info)| match &info.name {
-                Some(name) => format!("{index}: {name:?}"),
-                None => format!("#{index}"),
-            })
-            .collect::<Vec<_>>()
-            .join(", ")
+        resolve_animation(&self.path, &self.animation_infos, selector)
     }
 
     pub fn textures(&self) -> &[Texture] {
@@ -333,6 +301,52 @@ impl CharacterAsset {
             })
             .collect()
     }
+}
+
+/// The index of the animation `selector` names among a file's `infos`, or an error that lists
+/// what the file has.
+fn resolve_animation(
+    path: &Path,
+    infos: &[AnimationInfo],
+    selector: &AnimationSelector,
+) -> Result<usize, CharacterError> {
+    match selector {
+        AnimationSelector::Index(index) => {
+            if *index < infos.len() {
+                Ok(*index)
+            } else {
+                Err(CharacterError::AnimationIndexOutOfRange {
+                    path: path.to_path_buf(),
+                    index: *index,
+                    count: infos.len(),
+                })
+            }
+        }
+        AnimationSelector::Name(name) => infos
+            .iter()
+            .position(|info| info.name.as_deref() == Some(name.as_str()))
+            .ok_or_else(|| CharacterError::AnimationNotFound {
+                path: path.to_path_buf(),
+                name: name.clone(),
+                available: animation_list(infos),
+            }),
+    }
+}
+
+/// "0: Survey, 1: Walk, 2: Run"; unnamed animations as "#i"; "(no animations)" when empty.
+fn animation_list(infos: &[AnimationInfo]) -> String {
+    if infos.is_empty() {
+        return "(no animations)".to_string();
+    }
+    infos
+        .iter()
+        .enumerate()
+        .map(|(index, info)| match &info.name {
+            Some(name) => format!("{index}: {name:?}"),
+            None => format!("#{index}"),
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 /// Throughput figure for `snell bench`: skins `asset` `repetitions` times (at least once), returns

@@ -27,7 +27,7 @@ pub struct Pose {
 /// large enough that the scheduling overhead stays well below the blending work.
 const VERTICES_PER_TASK: usize = 256;
 
-fn local_matrix(local: &LocalTransform) -> Mat4 {
+pub(super) fn local_matrix(local: &LocalTransform) -> Mat4 {
     match *local {
         LocalTransform::Trs {
             translation,
@@ -43,7 +43,7 @@ fn local_matrix(local: &LocalTransform) -> Mat4 {
 }
 
 /// Applies an animated component to a node's local transform.
-fn apply(local: LocalTransform, sampled: Sampled) -> LocalTransform {
+pub(super) fn apply(local: LocalTransform, sampled: Sampled) -> LocalTransform {
     let (mut translation, mut rotation, mut scale) = match local {
         LocalTransform::Trs {
             translation,

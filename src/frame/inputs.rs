@@ -1,6 +1,6 @@
 //! What a frame is made from, hashed. Receives a scene and its loaded characters; returns the
 //! BLAKE3 digest of every file they read (the scene file, each character's glTF with its buffers
-//! and images, image textures), and from it the input hash written into each EXR header
+//! and images, a glTF camera's file with its buffers, image textures), and from it the input hash written into each EXR header
 //! (`snell.extra.inputHash`) that `snell render --resume` compares. The simulation checkpoint key
 //! is made from the same digest, so the files are read and hashed once per job.
 
@@ -31,12 +31,14 @@ impl InputHash {
 pub const INPUT_HASH_ATTRIBUTE: &str = "inputHash";
 
 /// Every file `scene` and its `characters` read besides the scene file itself, sorted and without
-/// repeats: characters' .gltf/.glb with their external buffers and images, image textures.
+/// repeats: characters' .gltf/.glb with their external buffers and images, a glTF camera's file
+/// with its buffers, image textures.
 pub fn referenced_files(scene: &Scene, characters: &[Character]) -> Vec<PathBuf> {
     let mut files: Vec<PathBuf> = characters
         .iter()
         .flat_map(|c| c.asset.files().iter().cloned())
         .chain(scene.image_files())
+        .chain(scene.camera.files().iter().cloned())
         .collect();
     files.sort();
     files.dedup();

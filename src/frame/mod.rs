@@ -30,7 +30,7 @@ use crate::refraction::virtual_geometry::{
 };
 use crate::scene::{Scene, SceneError};
 use crate::sim::SumHeightField;
-use crate::timeline::{CameraTrack, Timeline};
+use crate::timeline::{CameraMotion, Timeline};
 use crate::water::{build_membrane, HeightField, Membrane, Wave, WaveField};
 
 /// Everything that can stop a render, sorted into "your input is wrong" (exit 2) and the rest.
@@ -346,7 +346,8 @@ pub struct RenderJob {
     pub objects: Vec<Object>,
     pub textures: Vec<Texture>,
     pub waves: WaveField,
-    pub camera_track: CameraTrack,
+    /// The camera: keyframes or a glTF file's.
+    pub camera_motion: CameraMotion,
     /// Characters (posed every frame) and the ripples they make.
     pub dynamics: characters::Dynamics,
     /// How under-water geometry is placed ([`Method::EqualT`] unless set).
@@ -409,7 +410,7 @@ impl RenderJob {
             level_m: scene.water.level_m,
             waves: scene.water.waves.iter().map(wave_from_spec).collect(),
         };
-        let camera_track = CameraTrack::new(scene.camera_keys.clone());
+        let camera_motion = scene.camera.motion();
         let top = waves.height_bounds_m().1 as f32 + 1e-3;
         let bottom = objects
             .iter()
@@ -421,7 +422,7 @@ impl RenderJob {
             objects,
             textures,
             waves,
-            camera_track,
+            camera_motion,
             dynamics,
             method: Method::default(),
             subdivision: SubdivisionSettings::default(),
@@ -440,6 +441,8 @@ impl RenderJob {
     /// limit ([`limits::check_frame`]); every frame checks it before it starts, and a render
     /// before its first frame.
     pub fn check_frame_resources(&self, width: u32, height: u32) -> Result<(), SnellError> {
+        // A glTF camera with its own aspect ratio renders only frames of that shape.
+        self.scene.camera.check_frame_size(width, height)?;
         limits::check_frame(&self.resources, self.method, width, height).map(|_| ())
     }
 
@@ -482,7 +485,7 @@ impl RenderJob {
     }
 
     /// Every file the scene references besides the scene file (character models with their
-    /// buffers and images, image textures), sorted, without repeats.
+    /// buffers and images, a glTF camera with its buffers, image textures), sorted, without repeats.
     pub fn referenced_files(&self) -> Vec<PathBuf> {
         inputs::referenced_files(&self.scene, &self.dynamics.characters)
     }
@@ -524,7 +527,7 @@ impl RenderJob {
     }
 
     pub fn camera_at(&self, frame: u32) -> Camera {
-        self.camera_track
+        self.camera_motion
             .sample(self.scene.timeline.time_secs(frame))
     }
 
@@ -548,7 +551,7 @@ impl RenderJob {
         stage_secs: &mut BTreeMap<String, f64>,
     ) -> Result<FrameWater<'_>, SnellError> {
         let time_secs = self.scene.timeline.time_secs(frame);
-        let camera = self.camera_track.sample(time_secs);
+        let camera = self.camera_motion.sample(time_secs);
         let clock = Instant::now();
         let posed = self.dynamics.posed_objects(time_secs);
         limits::check_posed(&self.scene, frame, &posed)?;
@@ -956,6 +959,35 @@ impl RenderJob {
                 object.mesh.triangle_count()
             );
         }
+        let _ = match &scene.camera {
+            crate::scene::CameraSpec::Keys(keys) => {
+                writeln!(text, "camera     {} keyframe(s)", keys.len())
+            }
+            crate::scene::CameraSpec::Gltf(spec) => {
+                let camera = &spec.camera;
+                let p = camera.projection;
+                writeln!(
+                    text,
+                    "camera     glTF {} node {:?}: yfov {:.2} deg, aspectRatio {}, znear {} m, zfar {}; {}",
+                    spec.file.display(),
+                    camera.node_name,
+                    p.yfov_rad.to_degrees(),
+                    p.aspect_ratio
+                        .map_or("none (the frame's)".to_string(), |a| format!("{a:.4}")),
+                    p.znear_m,
+                    p.zfar_m.map_or(
+                        format!("none (clipped at {} m)", crate::camera::FAR_M),
+                        |f| format!("{f} m")
+                    ),
+                    match &camera.animation {
+                        Some((label, [start, end])) => {
+                            format!("animation {label}, {start:.3}-{end:.3} s")
+                        }
+                        None => "no animation (still)".to_string(),
+                    }
+                )
+            }
+        };
         let characters = &self.dynamics.characters;
         if !characters.is_empty() {
             let _ = writeln!(text, "characters {}", characters.len());

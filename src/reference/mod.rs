@@ -39,7 +39,7 @@ use std::time::Instant;
 use glam::{Vec2, Vec3, Vec4};
 use rayon::prelude::*;
 
-use crate::camera::{Camera, FAR_M, NEAR_M};
+use crate::camera::Camera;
 use crate::draw::{DrawMaterial, FrameView, RenderedFrame, SKY_DEPTH_M};
 use crate::gpu::shading;
 use crate::mesh::Object;
@@ -180,9 +180,12 @@ impl<'a> Tracer<'a> {
     /// What the sight ray along unit `direction` from the eye shows.
     pub fn trace(&self, direction: Vec3) -> PixelSample {
         let eye = self.camera.eye;
-        // The rasteriser clips at view depths NEAR_M and FAR_M; along this ray that is:
+        // The rasteriser clips at the camera's near and far view depths; along this ray that is:
         let depth_per_t = direction.dot(self.forward).max(1e-6);
-        let (t_near, t_far) = (NEAR_M / depth_per_t, FAR_M / depth_per_t);
+        let (t_near, t_far) = (
+            self.camera.near_m / depth_per_t,
+            self.camera.far_m / depth_per_t,
+        );
         let mut steps = RootSteps::default();
         let water = match &self.membrane_surface {
             None => self.scene.surface.first_crossing(
@@ -536,6 +539,8 @@ mod tests {
                     target: eye + Vec3::new(1.0, -1.0, 0.0),
                     up: Vec3::Y,
                     fov_y_deg: 60.0,
+                    near_m: crate::camera::NEAR_M,
+                    far_m: crate::camera::FAR_M,
                 },
             }
         }

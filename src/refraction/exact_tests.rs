@@ -200,6 +200,8 @@ fn exact_mode_finds_every_image_under_a_crest() {
         target: point,
         up: Vec3::Y,
         fov_y_deg: 50.0,
+        near_m: crate::camera::NEAR_M,
+        far_m: crate::camera::FAR_M,
     };
     let frame = geometry(
         &membrane,
@@ -243,6 +245,8 @@ fn newton_failure_falls_back_to_the_linear_point_and_is_counted() {
         target: Vec3::new(0.0, -1.0, 0.3),
         up: Vec3::Y,
         fov_y_deg: 60.0,
+        near_m: crate::camera::NEAR_M,
+        far_m: crate::camera::FAR_M,
     };
     let objects = [sheet(6, (-1.0, 1.0), (-1.0, 1.2), |x, _| -0.8 - 0.2 * x)];
     let linear = geometry(
@@ -290,6 +294,8 @@ fn flat_camera() -> Camera {
         target: Vec3::new(0.0, -1.0, 0.3),
         up: Vec3::Y,
         fov_y_deg: 60.0,
+        near_m: crate::camera::NEAR_M,
+        far_m: crate::camera::FAR_M,
     }
 }
 const IMAGE_SIZE: (u32, u32) = (1920, 1080);

@@ -2,7 +2,8 @@
 //! cannot do without it, unknown keys refused. Values are checked and defaulted in `validate`,
 //! which knows the key paths and so can point at the offending line.
 
-use serde::Deserialize;
+use serde::de::{IgnoredAny, MapAccess, SeqAccess, Visitor};
+use serde::{Deserialize, Deserializer};
 
 #[derive(Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -12,7 +13,7 @@ pub(crate) struct RawScene {
     pub max_edge_m: Option<f64>,
     #[serde(default)]
     pub timeline: RawTimeline,
-    pub camera: Option<Vec<RawCameraKey>>,
+    pub camera: Option<RawCamera>,
     #[serde(default)]
     pub water: RawWater,
     #[serde(default)]
@@ -37,6 +38,58 @@ pub(crate) struct RawQuality {
 pub(crate) struct RawTimeline {
     pub fps: Option<f64>,
     pub frames: Option<[i64; 2]>,
+}
+
+/// `camera`: `[[camera]]` keyframe tables, or one `[camera]` table that takes the camera from a
+/// glTF file. (TOML itself refuses both in one file: a key defined twice.)
+#[derive(Debug)]
+pub(crate) enum RawCamera {
+    Keys(Vec<RawCameraKey>),
+    Gltf(RawGltfCamera),
+}
+
+impl<'de> Deserialize<'de> for RawCamera {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        struct CameraVisitor;
+        impl<'de> Visitor<'de> for CameraVisitor {
+            type Value = RawCamera;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str(
+                    "[[camera]] keyframe tables, or a [camera] table with gltf = \"file.glb\"",
+                )
+            }
+            fn visit_seq<A: SeqAccess<'de>>(self, seq: A) -> Result<RawCamera, A::Error> {
+                Vec::deserialize(serde::de::value::SeqAccessDeserializer::new(seq))
+                    .map(RawCamera::Keys)
+            }
+            fn visit_map<A: MapAccess<'de>>(self, map: A) -> Result<RawCamera, A::Error> {
+                RawGltfCamera::deserialize(serde::de::value::MapAccessDeserializer::new(map))
+                    .map(RawCamera::Gltf)
+            }
+        }
+        deserializer.deserialize_any(CameraVisitor)
+    }
+}
+
+/// `[camera]`: the camera of a glTF file, animated by the file.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawGltfCamera {
+    /// The .glb/.gltf, relative to the scene file (required; optional here so that its absence
+    /// gets a message of its own).
+    pub gltf: Option<String>,
+    /// The name of the node that carries the camera.
+    pub node: Option<String>,
+    pub animation: Option<RawAnimation>,
+    pub time_offset_secs: Option<f64>,
+    /// "gltf" (the camera's aspectRatio must match the frame's) or "render".
+    pub aspect: Option<String>,
+    // Keyframe keys, refused with a message that says why (they conflict with the file's camera).
+    pub eye: Option<IgnoredAny>,
+    pub target: Option<IgnoredAny>,
+    pub fov_deg: Option<IgnoredAny>,
+    pub frame: Option<IgnoredAny>,
+    pub time_secs: Option<IgnoredAny>,
 }
 
 #[derive(Debug, Deserialize)]

@@ -105,6 +105,8 @@ pub const KEY_RANGES: &[KeyRange] = &[
         max_open: true,
         ..above("camera[].fov_deg", 0.0, 180.0, "deg", "50")
     },
+    whole("camera.animation", 0.0, 1e6, "0"),
+    closed("camera.time_offset_secs", -KEY_SECS, KEY_SECS, "s", "0.0"),
     closed("water.level_m", -W, W, "m", "0.0"),
     closed("water.min[]", -W, W, "m", "[-5.0, -2.5]"),
     closed("water.max[]", -W, W, "m", "[5.0, 2.5]"),

@@ -42,8 +42,8 @@ pub struct Scene {
     /// The scene file (image textures are resolved against its folder).
     pub path: PathBuf,
     pub timeline: Timeline,
-    /// Camera keyframes in strictly increasing time order (at least one).
-    pub camera_keys: Vec<CameraKey>,
+    /// Where the camera comes from: keyframes or a glTF file.
+    pub camera: CameraSpec,
     pub water: WaterSpec,
     /// The static objects as described (meshes are built on demand by [`Scene::build_objects`]).
     pub objects: Arc<[ObjectSpec]>,
@@ -55,6 +55,96 @@ pub struct Scene {
     /// What a frame of the scene file needs (characters, textures and the image size are added
     /// by the frame stage), checked against the limits at validation.
     pub resources: resources::Estimate,
+}
+
+/// The scene's camera, validated.
+#[derive(Clone, Debug, PartialEq)]
+pub enum CameraSpec {
+    /// `[[camera]]` keyframes in strictly increasing time order (at least one).
+    Keys(Vec<CameraKey>),
+    /// `[camera] gltf = ...`: a glTF file's camera, animated by the file.
+    Gltf(GltfCameraSpec),
+}
+
+/// How a glTF camera's `aspectRatio` and the frame size (`--size`) go together.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum AspectRule {
+    /// `aspect = "gltf"` (the default): the frame must have the camera's aspect ratio (to a pixel);
+    /// another size is an error. A camera without `aspectRatio` takes the frame's, as glTF says.
+    Gltf,
+    /// `aspect = "render"`: the camera's vertical field of view at the frame's aspect ratio,
+    /// whatever the file's `aspectRatio` (the horizontal field of view follows the frame).
+    Render,
+}
+
+/// `[camera] gltf = ...`, validated: the file is read and its camera checked at every frame of the
+/// timeline (a view, above the water, inside the world) when the scene loads.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GltfCameraSpec {
+    /// Resolved against the scene file's folder.
+    pub file: PathBuf,
+    pub camera: Arc<crate::character::GltfCamera>,
+    /// Added to the timeline time to give the glTF animation's time.
+    pub time_offset_secs: f64,
+    pub aspect: AspectRule,
+    /// Where the scene names the file, for errors found later (the frame size).
+    pub source: SourceRef,
+}
+
+impl CameraSpec {
+    /// The camera ready to sample at any time.
+    pub fn motion(&self) -> crate::timeline::CameraMotion {
+        match self {
+            CameraSpec::Keys(keys) => {
+                crate::timeline::CameraMotion::Keys(crate::timeline::CameraTrack::new(keys.clone()))
+            }
+            CameraSpec::Gltf(spec) => crate::timeline::CameraMotion::Gltf {
+                camera: spec.camera.clone(),
+                time_offset_secs: spec.time_offset_secs,
+            },
+        }
+    }
+
+    /// Files the camera reads besides the scene (a glTF camera's file and buffers).
+    pub fn files(&self) -> &[PathBuf] {
+        match self {
+            CameraSpec::Keys(_) => &[],
+            CameraSpec::Gltf(spec) => spec.camera.files(),
+        }
+    }
+
+    /// Checks a frame size against a glTF camera's aspect ratio ([`AspectRule`]); keyframed
+    /// cameras and glTF cameras without `aspectRatio` take any size.
+    pub fn check_frame_size(&self, width: u32, height: u32) -> Result<(), SceneError> {
+        let CameraSpec::Gltf(spec) = self else {
+            return Ok(());
+        };
+        let Some(aspect) = spec.camera.projection.aspect_ratio else {
+            return Ok(());
+        };
+        if spec.aspect == AspectRule::Render {
+            return Ok(());
+        }
+        let (w, h, a) = (width as f64, height as f64, aspect as f64);
+        // Within a pixel of the camera's shape along either side: the nearest whole size.
+        if (w - h * a).abs() <= 1.0 || (h - w / a).abs() <= 1.0 {
+            return Ok(());
+        }
+        let wide = ((h * a).round() as u32).max(1);
+        let high = ((w / a).round() as u32).max(1);
+        Err(spec.source.error(
+            format!(
+                "the glTF camera of node {:?} has aspectRatio {aspect:.4} (width over height) but the frame is \
+                 {width}x{height} ({:.4})",
+                spec.camera.node_name,
+                w / h
+            ),
+            format!(
+                "render at --size {wide}x{height} or {width}x{high}, or set aspect = \"render\" under [camera] \
+                 to keep the camera's vertical field of view at the frame's aspect ratio"
+            ),
+        ))
+    }
 }
 
 /// `[quality]`, validated.
@@ -307,6 +397,14 @@ impl Scene {
         validate::validate(raw, &map)
     }
 
+    /// The keyframes of a keyframed camera (none for a glTF camera).
+    pub fn camera_keys(&self) -> &[CameraKey] {
+        match &self.camera {
+            CameraSpec::Keys(keys) => keys,
+            CameraSpec::Gltf(_) => &[],
+        }
+    }
+
     pub fn lighting(&self) -> Lighting {
         self.lighting
     }
@@ -389,7 +487,10 @@ impl Scene {
             vertices: parts.iter().map(|p| p.mesh.vertex_count()).sum(),
             triangles: parts.iter().map(|p| p.mesh.triangle_count()).sum(),
             membrane_cells: self.water.resolution[0] as u64 * self.water.resolution[1] as u64,
-            camera_keys: self.camera_keys.len(),
+            camera_keys: match &self.camera {
+                CameraSpec::Keys(keys) => keys.len(),
+                CameraSpec::Gltf(_) => 0,
+            },
             waves: self.water.waves.len(),
         }
     }
@@ -646,8 +747,8 @@ mod tests {
                 last_frame: 48
             }
         );
-        assert_eq!(scene.camera_keys.len(), 1);
-        let key = scene.camera_keys[0];
+        assert_eq!(scene.camera_keys().len(), 1);
+        let key = scene.camera_keys()[0];
         assert!(
             key.eye.y > 1.0 && key.target.y < 0.0,
             "camera {key:?} does not look down at the water"
@@ -689,12 +790,12 @@ mod tests {
             ),
             (1, 48, 24.0)
         );
-        assert_eq!(scene.camera_keys.len(), 3);
+        assert_eq!(scene.camera_keys().len(), 3);
         assert!(scene
-            .camera_keys
+            .camera_keys()
             .windows(2)
             .all(|k| k[0].time_secs < k[1].time_secs));
-        assert!((scene.camera_keys[2].time_secs - 47.0 / 24.0).abs() < 1e-12);
+        assert!((scene.camera_keys()[2].time_secs - 47.0 / 24.0).abs() < 1e-12);
         assert_eq!(scene.water.waves.len(), 4);
         for wave in &scene.water.waves {
             assert!(wave.amplitude_m > 0.0 && wave.amplitude_m < 0.05);

@@ -8,14 +8,15 @@ use glam::Vec3;
 
 use super::error::{KeyPath, SourceMap};
 use super::format::{
-    RawAnimation, RawCameraKey, RawCharacter, RawObject, RawRipples, RawScene, RawTexture, RawWater,
+    RawAnimation, RawCamera, RawCameraKey, RawCharacter, RawGltfCamera, RawObject, RawRipples,
+    RawScene, RawTexture, RawWater,
 };
 use super::limits::{MAX_FRAME_NUMBER, MAX_TIMELINE_FRAMES};
 use super::primitives::DEFAULT_MAX_EDGE_M;
 use super::textures::{srgb_to_linear3, ImageSpec, LaneSpec, TextureSpec, TilesSpec};
 use super::{
-    AnimationChoice, CharacterSpec, ObjectSpec, PathKey, Playback, QualitySpec, RippleSpec, Scene,
-    SceneError, ShapeSpec, WaterSpec, WaveSpec,
+    AnimationChoice, AspectRule, CameraSpec, CharacterSpec, GltfCameraSpec, ObjectSpec, PathKey,
+    Playback, QualitySpec, RippleSpec, Scene, SceneError, ShapeSpec, WaterSpec, WaveSpec,
 };
 use crate::draw::Lighting;
 use crate::timeline::{CameraKey, Timeline};
@@ -24,7 +25,7 @@ mod camera;
 mod objects;
 mod water;
 
-use camera::{camera_keys, keyframe_time, KeyList};
+use camera::{camera, keyframe_time, KeyList};
 use objects::{default_pool, object};
 use water::water;
 
@@ -92,7 +93,7 @@ pub(crate) fn validate(raw: RawScene, map: &SourceMap<'_>) -> Result<Scene> {
     let timeline = timeline(&raw, map)?;
     let has_characters = raw.character.as_ref().is_some_and(|c| !c.is_empty());
     let water = water(&raw.water, has_characters, map)?;
-    let camera_keys = camera_keys(raw.camera.as_deref(), &timeline, &water, map)?;
+    let camera = camera(raw.camera.as_ref(), &timeline, &water, map)?;
     let lighting = lighting(&raw, map)?;
     let quality = quality(&raw, map)?;
     let objects = match &raw.object {
@@ -125,7 +126,7 @@ pub(crate) fn validate(raw: RawScene, map: &SourceMap<'_>) -> Result<Scene> {
         resources,
         path: map.file.to_path_buf(),
         timeline,
-        camera_keys,
+        camera,
         water,
         objects: Arc::from(objects),
         characters: Arc::from(characters),
@@ -266,15 +267,11 @@ fn timeline(raw: &RawScene, map: &SourceMap<'_>) -> Result<Timeline> {
     })
 }
 
-fn character(
-    raw: &RawCharacter,
-    at: &KeyPath,
-    index: usize,
-    timeline: &Timeline,
-    map: &SourceMap<'_>,
-) -> Result<CharacterSpec> {
+/// A glTF file named at `at`, resolved against the scene's folder: it must be a regular file
+/// within the asset size cap (its contents are read by whoever uses it).
+fn gltf_file(raw: &str, at: &KeyPath, map: &SourceMap<'_>) -> Result<std::path::PathBuf> {
     let folder = map.file.parent().unwrap_or(Path::new(""));
-    let file = folder.join(&raw.file);
+    let file = folder.join(raw);
     if let Err(error) = crate::files::check_regular(&file, crate::files::MAX_ASSET_BYTES) {
         let problem = match error {
             crate::files::InputFileError::NotFound(_) => format!(
@@ -284,23 +281,41 @@ fn character(
             other => format!("cannot use the glTF file: {other}"),
         };
         return Err(map.error(
-            &at.key("file"),
+            at,
             problem,
             "check the path; it is relative to the scene file and must name a .glb or .gltf file",
         ));
     }
-    let animation = match &raw.animation {
-        None => None,
-        Some(RawAnimation::Name(name)) => Some(AnimationChoice::Name(name.clone())),
-        Some(RawAnimation::Index(i)) if *i >= 0 => Some(AnimationChoice::Index(*i as usize)),
-        Some(RawAnimation::Index(i)) => {
-            return Err(map.error(
-                &at.key("animation"),
-                format!("an animation index cannot be negative (got {i})"),
-                "use the animation's name or its index from 0",
-            ))
-        }
-    };
+    Ok(file)
+}
+
+/// A glTF animation by name or by index (`at` is its key).
+fn animation_choice(
+    raw: Option<&RawAnimation>,
+    at: &KeyPath,
+    map: &SourceMap<'_>,
+) -> Result<Option<AnimationChoice>> {
+    match raw {
+        None => Ok(None),
+        Some(RawAnimation::Name(name)) => Ok(Some(AnimationChoice::Name(name.clone()))),
+        Some(RawAnimation::Index(i)) if *i >= 0 => Ok(Some(AnimationChoice::Index(*i as usize))),
+        Some(RawAnimation::Index(i)) => Err(map.error(
+            at,
+            format!("an animation index cannot be negative (got {i})"),
+            "use the animation's name or its index from 0",
+        )),
+    }
+}
+
+fn character(
+    raw: &RawCharacter,
+    at: &KeyPath,
+    index: usize,
+    timeline: &Timeline,
+    map: &SourceMap<'_>,
+) -> Result<CharacterSpec> {
+    let file = gltf_file(&raw.file, &at.key("file"), map)?;
+    let animation = animation_choice(raw.animation.as_ref(), &at.key("animation"), map)?;
     let speed = raw.speed.unwrap_or(1.0);
     non_negative(speed, &at.key("speed"), "speed = 1.0", map)?;
     let playback = match raw.playback.as_deref().unwrap_or("loop") {

@@ -18,6 +18,32 @@ pub struct Timeline {
     pub last_frame: u32,
 }
 
+/// Where a scene's camera comes from, ready to be sampled at a time.
+#[derive(Clone, Debug, PartialEq)]
+pub enum CameraMotion {
+    /// `[[camera]]` keyframes.
+    Keys(CameraTrack),
+    /// A glTF file's camera node, animated by the file: timeline time + `time_offset_secs` is the
+    /// animation's time.
+    Gltf {
+        camera: std::sync::Arc<crate::character::GltfCamera>,
+        time_offset_secs: f64,
+    },
+}
+
+impl CameraMotion {
+    /// The camera at `time_secs` of the timeline.
+    pub fn sample(&self, time_secs: f64) -> crate::camera::Camera {
+        match self {
+            CameraMotion::Keys(track) => track.sample(time_secs),
+            CameraMotion::Gltf {
+                camera,
+                time_offset_secs,
+            } => camera.camera_at(time_secs + time_offset_secs),
+        }
+    }
+}
+
 /// A camera keyframe.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CameraKey {

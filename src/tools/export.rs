@@ -19,7 +19,7 @@ use std::io::Write as _;
 use std::path::{Path, PathBuf};
 
 use super::{check_frame, ToolError};
-use crate::camera::{Camera, FAR_M, NEAR_M};
+use crate::camera::Camera;
 use crate::frame::RenderJob;
 use crate::mesh::{Mesh, Object};
 use crate::output::{check_writable, ensure_output_dir, save_png_atomic, write_atomically};
@@ -79,8 +79,8 @@ impl CameraExport {
             fov_y_deg: camera.fov_y_deg,
             width: size.0,
             height: size.1,
-            near_m: NEAR_M,
-            far_m: FAR_M,
+            near_m: camera.near_m,
+            far_m: camera.far_m,
             view_from_world: camera.view_from_world().to_cols_array(),
             clip_from_world: camera.clip_from_world(size.0, size.1).to_cols_array(),
             conventions: "world space in metres, y up, right-handed; the camera looks from eye to \

@@ -362,6 +362,14 @@ fn read_meta(
         AttributeValue::F32(value) => *value,
         _ => return Err(mismatch(header::FOV_Y_DEG)),
     };
+    // Frames written before cameras had their own clip planes used the defaults.
+    let clip_plane = |name: &str, default: f32| match attributes.other.get(&text(name)) {
+        None => Ok(default),
+        Some(AttributeValue::F32(value)) => Ok(*value),
+        Some(_) => Err(mismatch(name)),
+    };
+    let near_m = clip_plane(header::CLIP_NEAR_M, crate::camera::NEAR_M)?;
+    let far_m = clip_plane(header::CLIP_FAR_M, crate::camera::FAR_M)?;
     let channel_map = match attributes.other.get(&text(header::CHANNEL_MAP)) {
         None => None,
         Some(AttributeValue::Text(value)) => Some(text_string(value)),
@@ -413,6 +421,8 @@ fn read_meta(
             target: vec3_attribute(header::CAMERA_TARGET)?,
             up: vec3_attribute(header::CAMERA_UP)?,
             fov_y_deg,
+            near_m,
+            far_m,
         },
         world_from_camera,
         world_to_camera_standard: attributes.world_to_camera,

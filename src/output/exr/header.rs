@@ -8,7 +8,7 @@ use glam::{Mat4, Vec3, Vec4};
 use super::channels::{CHANNEL_MAP_VERSION, CRYPTO_OBJECT};
 use super::cryptomatte;
 use super::FrameMeta;
-use crate::camera::{Camera, FAR_M, NEAR_M};
+use crate::camera::Camera;
 
 pub(super) const FRAME: &str = "snell.frame";
 pub(super) const TIME_SECS: &str = "snell.timeSecs";
@@ -17,6 +17,9 @@ pub(super) const FOV_Y_DEG: &str = "snell.fovYDeg";
 pub(super) const CAMERA_EYE: &str = "snell.cameraEye";
 pub(super) const CAMERA_TARGET: &str = "snell.cameraTarget";
 pub(super) const CAMERA_UP: &str = "snell.cameraUp";
+/// The camera's clip planes (view depths, metres); `worldToNDC`'s z row maps them to 0 and 1.
+pub(super) const CLIP_NEAR_M: &str = "snell.clipNearM";
+pub(super) const CLIP_FAR_M: &str = "snell.clipFarM";
 pub(super) const METHOD: &str = "snell.method";
 pub(super) const VERSION: &str = "snell.version";
 pub(super) const CHANNEL_MAP: &str = "snell.channelMap";
@@ -55,7 +58,7 @@ pub(super) fn screen_window_width(camera: &Camera, width: usize, height: usize) 
 pub(super) fn ndc_from_world(camera: &Camera, width: usize, height: usize) -> Mat4 {
     let window_width = screen_window_width(camera, width, height);
     let window_height = window_width * height as f32 / width as f32;
-    let (near, far) = (NEAR_M, FAR_M);
+    let (near, far) = (camera.near_m, camera.far_m);
     let depth_scale = far / (far - near);
     let ndc_from_camera = Mat4::from_cols(
         Vec4::new(1.0 / window_width, 0.0, 0.0, 0.0),
@@ -172,6 +175,8 @@ pub(super) fn attributes(
         (CAMERA_EYE.into(), vec3(camera.eye)),
         (CAMERA_TARGET.into(), vec3(camera.target)),
         (CAMERA_UP.into(), vec3(camera.up)),
+        (CLIP_NEAR_M.into(), AttributeValue::F32(camera.near_m)),
+        (CLIP_FAR_M.into(), AttributeValue::F32(camera.far_m)),
         (METHOD.into(), string(&meta.method)),
         (VERSION.into(), string(&meta.version)),
         (CHANNEL_MAP.into(), string(CHANNEL_MAP_VERSION)),
@@ -217,6 +222,8 @@ mod tests {
             target: Vec3::new(0.0, -1.0, 0.0),
             up: Vec3::Y,
             fov_y_deg: 50.0,
+            near_m: crate::camera::NEAR_M,
+            far_m: crate::camera::FAR_M,
         }
     }
 

@@ -11,6 +11,8 @@ fn test_camera() -> Camera {
         target: Vec3::new(0.0, -1.0, 0.0),
         up: Vec3::Y,
         fov_y_deg: 50.0,
+        near_m: crate::camera::NEAR_M,
+        far_m: crate::camera::FAR_M,
     }
 }
 

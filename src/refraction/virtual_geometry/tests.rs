@@ -108,6 +108,8 @@ fn flat_camera() -> Camera {
         target: Vec3::new(0.0, -1.0, 0.3),
         up: Vec3::Y,
         fov_y_deg: FOV_Y_DEG,
+        near_m: crate::camera::NEAR_M,
+        far_m: crate::camera::FAR_M,
     }
 }
 
@@ -295,6 +297,8 @@ fn boundary_and_undrawn_triangles_and_the_water_line() {
         target: Vec3::new(0.0, -1.0, 0.0),
         up: Vec3::Y,
         fov_y_deg: 60.0,
+        near_m: crate::camera::NEAR_M,
+        far_m: crate::camera::FAR_M,
     };
     let request = VirtualGeometryRequest {
         field: &field,
@@ -401,6 +405,8 @@ fn convergence_zone_under_a_steep_crest() {
             target: point,
             up: Vec3::Y,
             fov_y_deg: 50.0,
+            near_m: crate::camera::NEAR_M,
+            far_m: crate::camera::FAR_M,
         },
         image_size: (640, 480),
         objects: &objects,
@@ -490,6 +496,8 @@ fn crest_passing_over_a_point_pops() {
         target: point,
         up: Vec3::Y,
         fov_y_deg: 50.0,
+        near_m: crate::camera::NEAR_M,
+        far_m: crate::camera::FAR_M,
     };
     let request = |field| VirtualGeometryRequest {
         field,
@@ -570,6 +578,8 @@ fn crossing_into_a_neighbouring_cell_does_not_pop() {
                     target: point,
                     up: Vec3::Y,
                     fov_y_deg: 50.0,
+                    near_m: crate::camera::NEAR_M,
+                    far_m: crate::camera::FAR_M,
                 },
                 image_size: (640, 480),
                 objects: &objects,
@@ -637,6 +647,8 @@ fn accelerated_frame_equals_brute_force_frame_and_is_deterministic() {
         target: Vec3::new(0.0, -1.0, 0.3),
         up: Vec3::Y,
         fov_y_deg: 60.0,
+        near_m: crate::camera::NEAR_M,
+        far_m: crate::camera::FAR_M,
     };
     let frame = |centre_x_m: f64, search: ImageSearch, previous: Option<&TrackingState>| {
         let surface = Crest { centre_x_m };

@@ -1,6 +1,175 @@
-//! Camera keyframes: times, positions and targets in order, and the interpolated views checked.
+//! The camera: keyframes (times, positions and targets in order, and the interpolated views
+//! checked) or a glTF file's camera (read, and its view checked at every frame).
 
 use super::*;
+use crate::character::{AnimationSelector, GltfCamera, GltfCameraError};
+use crate::scene::limits::WORLD_LIMIT_M;
+
+pub(super) fn camera(
+    raw: Option<&RawCamera>,
+    timeline: &Timeline,
+    water: &WaterSpec,
+    map: &SourceMap<'_>,
+) -> Result<CameraSpec> {
+    match raw {
+        None => camera_keys(None, timeline, water, map).map(CameraSpec::Keys),
+        Some(RawCamera::Keys(keys)) => {
+            camera_keys(Some(keys), timeline, water, map).map(CameraSpec::Keys)
+        }
+        Some(RawCamera::Gltf(raw)) => gltf_camera(raw, timeline, water, map).map(CameraSpec::Gltf),
+    }
+}
+
+/// `[camera] gltf = "file.glb"`: the file's camera read and chosen here, so every problem with it
+/// is reported at its key when the scene loads, and its view is checked at every frame.
+fn gltf_camera(
+    raw: &RawGltfCamera,
+    timeline: &Timeline,
+    water: &WaterSpec,
+    map: &SourceMap<'_>,
+) -> Result<GltfCameraSpec> {
+    let at = KeyPath::root().key("camera");
+    let conflicts = [
+        ("eye", raw.eye.is_some()),
+        ("target", raw.target.is_some()),
+        ("frame", raw.frame.is_some()),
+        ("time_secs", raw.time_secs.is_some()),
+    ];
+    if let Some((key, _)) = conflicts.iter().find(|(_, given)| *given) {
+        return Err(map.error(
+            &at.key(key),
+            format!(
+                "`{key}` is a keyframe key, but this [camera] table takes its camera from a glTF file, \
+                 which says where the camera is at every frame"
+            ),
+            "remove it, or write keyframes as [[camera]] tables without gltf (one or the other)",
+        ));
+    }
+    if raw.fov_deg.is_some() {
+        return Err(map.error(
+            &at.key("fov_deg"),
+            "the glTF camera has its own field of view (its yfov), which fov_deg would contradict",
+            "remove fov_deg; change the camera's field of view in the file",
+        ));
+    }
+    let Some(gltf) = &raw.gltf else {
+        return Err(map.error(
+            &at,
+            "a [camera] table takes the camera from a glTF file and needs gltf = \"file\"",
+            "add e.g. gltf = \"assets/shot_cam.glb\" (relative to the scene file), or write keyframes \
+             as [[camera]] tables",
+        ));
+    };
+    let file = gltf_file(gltf, &at.key("gltf"), map)?;
+    let aspect = match raw.aspect.as_deref() {
+        None | Some("gltf") => AspectRule::Gltf,
+        Some("render") => AspectRule::Render,
+        Some(other) => {
+            return Err(map.error(
+                &at.key("aspect"),
+                format!("unknown aspect {other:?}"),
+                "use \"gltf\" (the frame must have the camera's aspectRatio) or \"render\" (the camera's \
+                 vertical field of view at the frame's aspect)",
+            ))
+        }
+    };
+    let time_offset_secs = raw.time_offset_secs.unwrap_or(0.0);
+    let animation =
+        animation_choice(raw.animation.as_ref(), &at.key("animation"), map)?.map(|choice| {
+            match choice {
+                AnimationChoice::Name(name) => AnimationSelector::Name(name),
+                AnimationChoice::Index(index) => AnimationSelector::Index(index),
+            }
+        });
+    let camera = GltfCamera::load(&file, raw.node.as_deref(), animation.as_ref()).map_err(
+        |error| {
+            let (key, fix) = match &error {
+                GltfCameraError::File(_) => (
+                    "gltf",
+                    "name a glTF 2.0 file (.glb or .gltf) that Blender, Maya or another DCC exported",
+                ),
+                GltfCameraError::NoCamera => (
+                    "gltf",
+                    "export the camera with the file (in Blender: Include > Cameras), or name another file",
+                ),
+                GltfCameraError::SeveralCameras { .. } => {
+                    ("gltf", "choose one with node = \"NAME\" under [camera]")
+                }
+                GltfCameraError::NodeNotFound { .. } | GltfCameraError::NodeHasNoCamera { .. } => {
+                    ("node", "name one of the file's camera nodes")
+                }
+                GltfCameraError::Orthographic { .. } | GltfCameraError::BadProjection { .. } => (
+                    if raw.node.is_some() { "node" } else { "gltf" },
+                    "export a perspective camera with a field of view between 0 and 180 degrees and clip \
+                     planes 0 < znear < zfar",
+                ),
+                GltfCameraError::Animation(_) | GltfCameraError::AnimationMissesCamera { .. } => {
+                    ("animation", "name an animation that moves the camera node, or leave animation out")
+                }
+                GltfCameraError::SeveralAnimations { .. } => (
+                    "gltf",
+                    "choose one with animation = \"NAME\" (or its index) under [camera]",
+                ),
+            };
+            let key = if key == "animation" && raw.animation.is_none() { "gltf" } else { key };
+            let problem = match &error {
+                GltfCameraError::File(inner) => format!("cannot use the glTF camera file: {inner}"),
+                GltfCameraError::Animation(inner) => inner.to_string(),
+                other => format!("{}: {other}", file.display()),
+            };
+            map.error(&at.key(key), problem, fix)
+        },
+    )?;
+    // Every frame the timeline renders gives a view, from the air, inside the world.
+    let crest_m = water.level_m + water.max_crest_m();
+    for frame in timeline.frames() {
+        let time_secs = timeline.time_secs(frame) + time_offset_secs;
+        let at_frame = |problem: String, fix: &str| {
+            map.error(
+                &at.key("gltf"),
+                format!(
+                    "{}: the camera of node {:?} at frame {frame} (animation time {time_secs:.3} s): {problem}",
+                    file.display(),
+                    camera.node_name
+                ),
+                fix,
+            )
+        };
+        let view = camera.try_camera_at(time_secs).map_err(|problem| {
+            at_frame(
+                problem,
+                "fix the camera node's (or its parents') scale in the file",
+            )
+        })?;
+        if view.eye.abs().max_element() as f64 > WORLD_LIMIT_M {
+            return Err(at_frame(
+                format!(
+                    "the eye {:?} is more than {WORLD_LIMIT_M} m from the origin along an axis",
+                    view.eye.to_array()
+                ),
+                "export the scene in metres near the origin",
+            ));
+        }
+        if (view.eye.y as f64) <= crest_m {
+            return Err(at_frame(
+                format!(
+                    "the eye is under the water (y = {} m; the surface reaches {crest_m} m at its highest \
+                     crest); snell renders from the air",
+                    view.eye.y
+                ),
+                "move the camera above the water in the file, or set time_offset_secs to use another part of \
+                 its animation",
+            ));
+        }
+    }
+    Ok(GltfCameraSpec {
+        file,
+        camera: std::sync::Arc::new(camera),
+        time_offset_secs,
+        aspect,
+        source: map.source_ref(&at.key("gltf")),
+    })
+}
 
 pub(super) fn camera_keys(
     raw: Option<&[RawCameraKey]>,
