@@ -409,9 +409,10 @@ fn equivalent_cameras(dir: &Path) -> (PathBuf, PathBuf) {
 
 /// At the key frames, the glTF camera and the equivalent keyframes give the same view up to f32
 /// rounding (the eye is the same float; forward and up differ by ~1e-7), so the rendered frames
-/// agree except where a pixel centre lies within ~1e-3 px of an edge. Measured: see the assert
-/// messages; allowed: at most 3 of the 14,400 pixels of a 160x90 frame differ by more than 1e-3 in
-/// any beauty channel, and the mean difference is below 1e-5.
+/// agree except where a pixel centre lies within ~1e-3 px of an edge. Allowed: at most 3 of the
+/// 14,400 pixels of a 160x90 frame differ by more than 1e-3 in any beauty channel, and the mean
+/// difference is below 1e-5. Measured (lavapipe): 0 pixels above 1e-3 in both frames, mean
+/// differences 2.3e-7 (frame 1) and 1.6e-7 (frame 3); `-- --nocapture` prints them.
 #[test]
 fn a_gltf_camera_renders_as_the_equivalent_keyframes() {
     let dir = tempfile::tempdir().unwrap();
