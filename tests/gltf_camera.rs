@@ -355,10 +355,7 @@ fn equivalent_cameras(dir: &Path) -> (PathBuf, PathBuf) {
     let pitch_deg = [-40.0f64, -45.0];
     // Key times as the job computes a frame's time: (frame - first) / fps in f64, then f32.
     let times = [0.0f32, ((3 - 1) as f64 / 24.0) as f32];
-    let forward = |pitch: f64| {
-        let f = apply(mul(rot_y(180.0), rot_x(pitch)), [0.0, 0.0, -1.0]);
-        f
-    };
+    let forward = |pitch: f64| apply(mul(rot_y(180.0), rot_x(pitch)), [0.0, 0.0, -1.0]);
     // Quaternion of yaw 180 about y times pitch about x: (0, 1, 0, 0) * (sx, 0, 0, cx).
     let rotation = |pitch: f64| {
         let [sx, _, _, cx] = quat([1.0, 0.0, 0.0], pitch);

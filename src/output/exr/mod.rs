@@ -7,7 +7,8 @@
 //! `worldToCamera`, `worldToNDC`, `framesPerSecond`, `chromaticities`, `software` (and `owner`,
 //! `capDate`/`utcOffset` when asked for), the Cryptomatte metadata, and snell's own:
 //! `snell.frame` (int), `snell.timeSecs` (double), `snell.worldFromCamera` (m44f),
-//! `snell.fovYDeg` (float), `snell.cameraEye|Target|Up` (v3f), `snell.method`, `snell.version`,
+//! `snell.fovYDeg` (float), `snell.cameraEye|Target|Up` (v3f), `snell.clipNearM|FarM` (float:
+//! the camera's clip planes, defaults when absent), `snell.method`, `snell.version`,
 //! `snell.channelMap` (the map's version), `snell.objectNames` (JSON: the name of each
 //! `IndexOB`), and each extra entry `k = v` as the string attribute `snell.extra.k`.
 //!
