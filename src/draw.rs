@@ -171,9 +171,28 @@ pub struct RenderedFrame {
 }
 
 impl RenderedFrame {
+    /// What [`Self::layer_bytes`] counts a pixel with every layer: beauty 16, `Z` 4, apparent
+    /// depth 4, position 12, flags 4, object 4, water matte 4, sky reflection 16, motion 8.
+    pub const LAYER_BYTES_PER_PIXEL: usize = 72;
+
     /// Pixels of the frame (`width * height`).
     pub fn pixel_count(&self) -> usize {
         self.width as usize * self.height as usize
+    }
+
+    /// Bytes its layers hold ([`Self::LAYER_BYTES_PER_PIXEL`] a pixel with every layer): what the
+    /// frame weighs in the queue to the sequence writer, which is bounded in bytes.
+    pub fn layer_bytes(&self) -> usize {
+        use std::mem::size_of_val;
+        size_of_val(self.beauty_rgba.as_slice())
+            + size_of_val(self.depth_m.as_slice())
+            + size_of_val(self.apparent_depth_m.as_slice())
+            + size_of_val(self.position.as_slice())
+            + size_of_val(self.flags.as_slice())
+            + size_of_val(self.object.as_slice())
+            + size_of_val(self.water_matte.as_slice())
+            + size_of_val(self.water_reflection.as_slice())
+            + size_of_val(self.motion_px.as_slice())
     }
 
     /// The frame made of `strips` (bands of rows of one width, top first), one under the other.

@@ -53,6 +53,15 @@ pub struct WrittenFigures {
     /// rename: the writer thread's time on the frame, waiting for strips excluded), ms.
     pub comp_write_stage_ms: f64,
     pub all_write_stage_ms: f64,
+    /// Median process CPU milliseconds (user + system, every thread: the CPU drivers' too) per
+    /// frame, and the median of the per-pass ratios written / unwritten: the cost in CPU, which a
+    /// machine shared with other work (where wall clock measures the others' load as well) still
+    /// measures. On an idle machine of N cores a frame needs at least CPU / N of wall clock.
+    pub unwritten_cpu_ms: f64,
+    pub comp_cpu_ms: f64,
+    pub all_cpu_ms: f64,
+    pub comp_cpu_ratio: f64,
+    pub all_cpu_ratio: f64,
 }
 
 impl WrittenFigures {
@@ -60,7 +69,8 @@ impl WrittenFigures {
         format!(
             "whole `snell render` of {} frames {}-{} at {}x{}, per frame (amortised; median of {} passes):\n\
              \x20 unwritten {:.0} ms; --layers comp {:.0} ms ({:.2}x; target at most 1.3x; {:.1} MB, write stage {:.0} ms); \
-             all {:.0} ms ({:.2}x; target at most 2.5x; {:.1} MB, write stage {:.0} ms)\n",
+             all {:.0} ms ({:.2}x; target at most 2.5x; {:.1} MB, write stage {:.0} ms)\n\
+             \x20 CPU per frame: unwritten {:.0} ms; comp {:.0} ms ({:.2}x); all {:.0} ms ({:.2}x)\n",
             self.scene,
             self.frames[0],
             self.frames[1],
@@ -76,6 +86,11 @@ impl WrittenFigures {
             self.all_ratio,
             self.all_file_mb,
             self.all_write_stage_ms,
+            self.unwritten_cpu_ms,
+            self.comp_cpu_ms,
+            self.comp_cpu_ratio,
+            self.all_cpu_ms,
+            self.all_cpu_ratio,
         )
     }
 }
@@ -122,9 +137,17 @@ pub fn written_times(
     let mut file_mb = [0.0; 2];
     let mut write_stage_ms = [Vec::new(), Vec::new()];
     let mut unwritten_ms = Vec::new();
+    let (mut cpu_ms, mut cpu_ratios, mut unwritten_cpu_ms) = (
+        [Vec::new(), Vec::new()],
+        [Vec::new(), Vec::new()],
+        Vec::new(),
+    );
     for _ in 0..passes.max(1) {
+        let cpu_start = process_cpu_secs();
         let plain = unwritten(&job)?;
+        let plain_cpu = (process_cpu_secs() - cpu_start) * 1e3 / count;
         unwritten_ms.push(plain);
+        unwritten_cpu_ms.push(plain_cpu);
         for (k, write) in presets.iter().enumerate() {
             job.write = *write;
             let dir = tempfile::tempdir().map_err(|error| {
@@ -132,7 +155,7 @@ pub fn written_times(
             })?;
             let output =
                 crate::output::pattern::OutputPattern::for_scene(dir.path(), job.scene_name());
-            let start = Instant::now();
+            let (start, cpu_start) = (Instant::now(), process_cpu_secs());
             job.render_sequence(&super::resume::SequenceOptions {
                 frames: &list,
                 width,
@@ -145,8 +168,11 @@ pub fn written_times(
                 stop: None,
             })?;
             let ms = start.elapsed().as_secs_f64() * 1e3 / count;
+            let cpu = (process_cpu_secs() - cpu_start) * 1e3 / count;
             written_ms[k].push(ms);
             ratios[k].push(ms / plain);
+            cpu_ms[k].push(cpu);
+            cpu_ratios[k].push(cpu / plain_cpu);
             file_mb[k] = std::fs::metadata(output.path(first))
                 .map(|m| m.len() as f64 / 1e6)
                 .unwrap_or(f64::NAN);
@@ -164,6 +190,8 @@ pub fn written_times(
     let [comp_ms, all_ms] = written_ms.map(|mut v| median(&mut v));
     let [comp_ratio, all_ratio] = ratios.map(|mut v| median(&mut v));
     let [comp_write_stage_ms, all_write_stage_ms] = write_stage_ms.map(|mut v| median(&mut v));
+    let [comp_cpu_ms, all_cpu_ms] = cpu_ms.map(|mut v| median(&mut v));
+    let [comp_cpu_ratio, all_cpu_ratio] = cpu_ratios.map(|mut v| median(&mut v));
     Ok(WrittenFigures {
         scene: job.scene_name().to_string(),
         size: [width, height],
@@ -178,6 +206,11 @@ pub fn written_times(
         all_file_mb: file_mb[1],
         comp_write_stage_ms,
         all_write_stage_ms,
+        unwritten_cpu_ms: median(&mut unwritten_cpu_ms),
+        comp_cpu_ms,
+        all_cpu_ms,
+        comp_cpu_ratio,
+        all_cpu_ratio,
     })
 }
 
@@ -746,6 +779,74 @@ mod tuning {
             std::env::var("SNELL_WRITTEN_SCENE").unwrap_or_else(|_| "scenes/pool.toml".to_string());
         let figures = written_times(Path::new(&scene), WRITTEN_FRAMES, WRITTEN_PASSES).unwrap();
         print!("{}", figures.to_text());
+    }
+
+    /// The README's table of compression choices ("What a render gives you"): `snell render` of
+    /// `pool.toml` frames 23-25 at 1280x720 with each `--compression`, float32 and `--half`
+    /// beauty, every layer; per choice the median frame's file size, write stage (report.jsonl:
+    /// encoding, compression, write, fsync, rename) and file MB over write seconds. Prints the
+    /// table as markdown:
+    /// `cargo test --release --lib frame::bench::tuning::compression_table -- --ignored --nocapture`.
+    #[test]
+    #[ignore = "tuning aid"]
+    fn compression_table() {
+        use crate::output::exr::{ExrCompression, WriteOptions};
+        let mut job = RenderJob::prepare(Path::new("scenes/pool.toml")).unwrap();
+        let frames = [23, 24, 25];
+        println!("| compression | file | write | file MB/s | with `--half`: file | write |");
+        println!("|---|---|---|---|---|---|");
+        for compression in ExrCompression::ALL {
+            let mut cells = Vec::new();
+            for half_beauty in [false, true] {
+                job.write = WriteOptions {
+                    half_beauty,
+                    compression,
+                    ..WriteOptions::default()
+                };
+                let dir = tempfile::tempdir().unwrap();
+                let output =
+                    crate::output::pattern::OutputPattern::for_scene(dir.path(), job.scene_name());
+                job.render_sequence(&super::super::resume::SequenceOptions {
+                    frames: &frames,
+                    width: 1280,
+                    height: 720,
+                    output: &output,
+                    write_png: false,
+                    progress: false,
+                    log: super::super::resume::FrameLog::Quiet,
+                    resume: false,
+                    stop: None,
+                })
+                .unwrap();
+                let report = std::fs::read_to_string(dir.path().join("report.jsonl")).unwrap();
+                let mut rows: Vec<(f64, f64)> = report
+                    .lines()
+                    .map(|line| {
+                        let row: serde_json::Value = serde_json::from_str(line).unwrap();
+                        let frame = row["frame"].as_u64().unwrap() as u32;
+                        let mb = std::fs::metadata(output.path(frame)).unwrap().len() as f64 / 1e6;
+                        (row["stage_secs"]["write"].as_f64().unwrap(), mb)
+                    })
+                    .collect();
+                rows.sort_by(|a, b| a.0.total_cmp(&b.0));
+                let (secs, mb) = rows[rows.len() / 2];
+                cells.push((mb, secs));
+            }
+            let default = if compression == ExrCompression::default() {
+                " (default)"
+            } else {
+                ""
+            };
+            println!(
+                "| `{}`{default} | {:.1} MB | {:.2} s | {:.0} | {:.1} MB | {:.2} s |",
+                compression.name(),
+                cells[0].0,
+                cells[0].1,
+                cells[0].0 / cells[0].1,
+                cells[1].0,
+                cells[1].1
+            );
+        }
     }
 
     /// Tuning aid: the exact surface's global bounds (slope, curvature, height range) that every

@@ -8,6 +8,7 @@ pub mod characters;
 pub mod finite;
 pub mod inputs;
 pub mod limits;
+mod queue;
 pub mod resume;
 pub mod traced;
 mod writer;

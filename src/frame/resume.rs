@@ -373,13 +373,14 @@ impl RenderJob {
                 None
             };
             let bar = super::progress_bar(to_render.len() as u64, progress);
-            // Frames are encoded and written on a second thread while the next one is refracted
-            // and rendered (EXR compression costs about as much as the rest of a frame), strip by
-            // strip as the GPU reads them back (a frame small enough to read back at once is one
-            // strip). The channel holds two messages (a frame's end and the next one's first
-            // strip), so memory stays bounded by a few strips; the report row of a frame is
-            // appended only after its EXR is safely renamed into place.
-            let (sender, receiver) = std::sync::mpsc::sync_channel::<ToWriter>(2);
+            // Frames are encoded and written on threads of their own while the next ones are
+            // refracted and rendered (see writer.rs), strip by strip as the GPU reads them back
+            // (a frame small enough to read back at once is one strip). The queue between holds
+            // at most two frames' layers, or 256 MiB of strips (or one larger strip), so memory
+            // stays flat however long the sequence; the report row of a frame is appended only
+            // after its EXR is safely renamed into place.
+            let (sender, receiver) =
+                super::queue::byte_channel::<ToWriter>(super::queue::capacity_for(width, height));
             let written = std::thread::scope(|scope| {
                 let writer = scope
                     .spawn(move || super::writer::write_frames(receiver, report, write_png, log));
@@ -412,7 +413,8 @@ impl RenderJob {
                             height,
                         }));
                         let mut send = |message: ToWriter| {
-                            sender.send(message).map_err(|_| {
+                            let bytes = message.bytes();
+                            sender.send(message, bytes).map_err(|_| {
                                 writer_stopped = true;
                                 SnellError::Internal {
                                     frame: Some(frame),

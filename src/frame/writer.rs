@@ -1,14 +1,23 @@
-//! The writer thread of [`super::RenderJob::render_sequence`]: frames arrive strip by strip
-//! ([`ToWriter`]) and go to disk as they come, EXR (streamed, atomic), optional PNG, then the
-//! report row, so a frame larger than one strip is never held whole.
+//! The writer of [`super::RenderJob::render_sequence`]: frames arrive strip by strip
+//! ([`ToWriter`], through a queue bounded in bytes, [`super::queue`]) and go to disk as they come,
+//! in two stages on threads of their own that overlap the render of the next frames:
+//! - the encoder: each frame's EXR chunks compressed (on a thread pool of the writer's own) and
+//!   written under the file's temporary name, and the PNG tone-mapped when asked for;
+//! - the committer: each file synced to disk and renamed into place, then the PNG, then the report
+//!   row and the log line, in frame order. The fsync (about 30 ms a 720p frame, waiting on the
+//!   disk) so no longer holds up the next frame's encoding.
+//!
+//! A frame larger than one strip is never held whole.
 
 use std::path::PathBuf;
 use std::time::Instant;
 
+use super::queue::ByteReceiver;
 use super::SnellError;
 use crate::draw::RenderedFrame;
+use crate::output::Unsynced;
 
-/// A frame on its way to disk, strip by strip: what the writer thread of
+/// A frame on its way to disk, strip by strip: what the writer of
 /// [`super::RenderJob::render_sequence`] receives.
 pub(super) enum ToWriter {
     /// A frame begins: where it goes and what its header says.
@@ -19,6 +28,16 @@ pub(super) enum ToWriter {
     Done(Box<crate::output::report::FrameReport>),
 }
 
+impl ToWriter {
+    /// What the message weighs in the writer's queue: a strip's layers (the rest is small).
+    pub fn bytes(&self) -> usize {
+        match self {
+            ToWriter::Strip(_, strip) => strip.layer_bytes(),
+            ToWriter::Start(_) | ToWriter::Done(_) => 0,
+        }
+    }
+}
+
 pub(super) struct FrameStart {
     pub path: PathBuf,
     pub meta: crate::output::exr::FrameMeta,
@@ -26,10 +45,19 @@ pub(super) struct FrameStart {
     pub height: u32,
 }
 
-/// The writer thread of [`super::RenderJob::render_sequence`]: each frame's EXR (atomic, streamed strip
-/// by strip as they come), optional PNG, then the report row with the write time (the time spent
-/// writing, not waiting for strips) filled in. Stops at the first error; a frame whose strips stop
-/// coming (the render failed) leaves no file.
+/// A frame encoded under its temporary name, on its way to the committer.
+struct Encoded {
+    file: Unsynced,
+    png: Option<image::RgbaImage>,
+    row: Box<crate::output::report::FrameReport>,
+    /// Seconds the encoder spent on it (not waiting for strips).
+    encode_secs: f64,
+}
+
+/// The writer of [`super::RenderJob::render_sequence`]: each frame's EXR (atomic, streamed strip
+/// by strip as they come), optional PNG, then the report row with the write time (encoding,
+/// sync, rename and PNG; not the waiting for strips) filled in. Stops at the first error; a frame
+/// whose strips stop coming (the render failed) leaves no file.
 ///
 /// The chunks of a frame are compressed on a thread pool of the writer's own, one thread per
 /// core: on rayon's shared pool they queued ahead of the next frame's water, refraction and
@@ -37,7 +65,7 @@ pub(super) struct FrameStart {
 /// written frame took 0.3-1.2 s instead of a few ms); with a pool of its own the system shares
 /// the cores between the two.
 pub(super) fn write_frames(
-    receiver: std::sync::mpsc::Receiver<ToWriter>,
+    receiver: ByteReceiver<ToWriter>,
     report: crate::output::report::ReportWriter,
     write_png: bool,
     log: super::resume::FrameLog,
@@ -55,12 +83,47 @@ pub(super) fn write_frames(
 }
 
 fn write_each(
-    receiver: std::sync::mpsc::Receiver<ToWriter>,
-    mut report: crate::output::report::ReportWriter,
+    receiver: ByteReceiver<ToWriter>,
+    report: crate::output::report::ReportWriter,
     write_png: bool,
     log: super::resume::FrameLog,
 ) -> Result<(), SnellError> {
-    while let Ok(message) = receiver.recv() {
+    // One frame waits between the two stages (its file handle, and its PNG if any).
+    let (to_commit, committing) = std::sync::mpsc::sync_channel::<Encoded>(1);
+    std::thread::scope(|scope| {
+        let committer = std::thread::Builder::new()
+            .name("snell-commit".to_string())
+            .spawn_scoped(scope, move || commit_each(committing, report, log))
+            .map_err(|error| SnellError::Internal {
+                frame: None,
+                message: format!("cannot start the frame committer: {error}"),
+            })?;
+        let encoded = encode_each(receiver, write_png, &to_commit);
+        drop(to_commit);
+        let committed = committer.join().unwrap_or_else(|payload| {
+            Err(SnellError::Internal {
+                frame: None,
+                message: format!(
+                    "the frame committer failed: {}",
+                    crate::panics::describe(payload.as_ref())
+                ),
+            })
+        });
+        // The committer's error first: the encoder stops without one of its own when the
+        // committer has stopped.
+        committed.and(encoded)
+    })
+}
+
+/// The encoder stage: frames from the queue into temporary files, handed to the committer.
+/// Returns (dropping the queue, so the render stops too) at the first error or once the
+/// committer has stopped.
+fn encode_each(
+    receiver: ByteReceiver<ToWriter>,
+    write_png: bool,
+    to_commit: &std::sync::mpsc::SyncSender<Encoded>,
+) -> Result<(), SnellError> {
+    while let Some(message) = receiver.recv() {
         let ToWriter::Start(start) = message else {
             return Err(SnellError::Internal {
                 frame: None,
@@ -71,7 +134,7 @@ fn write_each(
         let mut waiting = 0.0;
         let mut png = write_png.then(|| image::RgbaImage::new(start.width, start.height));
         let mut done = None;
-        crate::output::exr::write_frame_exr_strips(
+        let file = crate::output::exr::write_frame_exr_unsynced(
             &start.path,
             &start.meta,
             start.width,
@@ -81,7 +144,7 @@ fn write_each(
                 let message = receiver.recv();
                 waiting += asked.elapsed().as_secs_f64();
                 match message {
-                    Ok(ToWriter::Strip(first_row, strip)) => {
+                    Some(ToWriter::Strip(first_row, strip)) => {
                         if let Some(png) = &mut png {
                             let rows = crate::output::tonemap::tonemap_srgb8(&strip, 0.0);
                             let at = first_row as usize * start.width as usize * 4;
@@ -90,27 +153,56 @@ fn write_each(
                         }
                         Ok(Some((first_row, std::borrow::Cow::Owned(strip))))
                     }
-                    Ok(ToWriter::Done(row)) => {
+                    Some(ToWriter::Done(row)) => {
                         done = Some(row);
                         Ok(None)
                     }
-                    Ok(ToWriter::Start(_)) => {
+                    Some(ToWriter::Start(_)) => {
                         Err("a frame began before the last one was complete".to_string())
                     }
-                    Err(_) => Err("the render stopped before the frame was complete".to_string()),
+                    None => Err("the render stopped before the frame was complete".to_string()),
                 }
             },
         )?;
-        if let Some(png) = &png {
-            crate::output::tonemap::save_png_atomic(&start.path.with_extension("png"), png)?;
+        let encoded = Encoded {
+            file,
+            png,
+            row: done.expect("the frame is complete once written"),
+            encode_secs: (clock.elapsed().as_secs_f64() - waiting).max(0.0),
+        };
+        if to_commit.send(encoded).is_err() {
+            // The committer stopped on an error, which write_each returns.
+            return Ok(());
         }
-        let mut row = done.expect("the frame is complete once written");
+    }
+    log::debug!(
+        "the writer's queue held at most {:.1} MB at once",
+        receiver.peak_bytes() as f64 / 1e6
+    );
+    Ok(())
+}
+
+/// The committer stage: each encoded frame synced and renamed into place, its PNG, its report
+/// row (the write time completed) and its log line, in the order they were rendered.
+fn commit_each(
+    committing: std::sync::mpsc::Receiver<Encoded>,
+    mut report: crate::output::report::ReportWriter,
+    log: super::resume::FrameLog,
+) -> Result<(), SnellError> {
+    for encoded in committing {
+        let clock = Instant::now();
+        let path = encoded.file.path().to_path_buf();
+        encoded.file.commit()?;
+        if let Some(png) = &encoded.png {
+            crate::output::tonemap::save_png_atomic(&path.with_extension("png"), png)?;
+        }
+        let mut row = encoded.row;
         row.stage_secs.insert(
             "write".to_string(),
-            (clock.elapsed().as_secs_f64() - waiting).max(0.0),
+            encoded.encode_secs + clock.elapsed().as_secs_f64(),
         );
         report.append(&row)?;
-        if let Some(line) = log.line(&start.path, &row) {
+        if let Some(line) = log.line(&path, &row) {
             crate::outln!("{line}");
         }
     }

@@ -101,32 +101,92 @@ pub(crate) fn write_atomically(
     path: &Path,
     write_contents: impl FnOnce(&mut File) -> Result<(), String>,
 ) -> Result<(), OutputError> {
+    write_unsynced(path, write_contents)?.commit()
+}
+
+/// The first half of [`write_atomically`]: `write_contents` fills the temporary file beside
+/// `path`, which is neither synced nor renamed until [`Unsynced::commit`]. So a writer can hand the
+/// fsync (tens of milliseconds of waiting a frame) to another thread and encode the next file
+/// meanwhile. On error, or when the result is dropped uncommitted, the temporary file is removed.
+pub(crate) fn write_unsynced(
+    path: &Path,
+    write_contents: impl FnOnce(&mut File) -> Result<(), String>,
+) -> Result<Unsynced, OutputError> {
     if let Some(parent) = path.parent() {
         ensure_output_dir(parent)?;
     }
     let temporary_path = temporary::temporary_path_for(path);
-    let write_error = |cause: String| OutputError::Write {
+    let mut unsynced = Unsynced {
+        file: None,
+        temporary_path,
         path: path.to_path_buf(),
-        cause,
     };
-    let result = (|| {
-        let mut file = temporary::create(&temporary_path).map_err(|error| error.to_string())?;
-        write_contents(&mut file)?;
-        file.sync_all()
-            .map_err(|error| format!("sync failed: {error}"))?;
-        drop(file);
-        fs::rename(&temporary_path, path)
-            .map_err(|error| format!("rename from {}: {error}", temporary_path.display()))
-    })();
-    if let Err(cause) = result {
-        // The temporary file may not exist (creation failed); either way it must not stay behind.
-        let _ = fs::remove_file(&temporary_path);
-        temporary::release(&temporary_path);
-        return Err(write_error(cause));
+    let file = temporary::create(&unsynced.temporary_path)
+        .map_err(|error| unsynced.error(error.to_string()))?;
+    let file = unsynced.file.insert(file);
+    write_contents(file).map_err(|cause| unsynced.error(cause))?;
+    Ok(unsynced)
+}
+
+/// A file written under its temporary name by [`write_unsynced`], waiting for
+/// [`Unsynced::commit`]. Dropped uncommitted, its temporary file is removed.
+pub(crate) struct Unsynced {
+    /// `None` once committed (or never created).
+    file: Option<File>,
+    temporary_path: PathBuf,
+    path: PathBuf,
+}
+
+impl Unsynced {
+    /// Syncs the file to disk and renames it over its path (then syncs the folder).
+    pub fn commit(mut self) -> Result<(), OutputError> {
+        let Some(file) = self.file.take() else {
+            return Err(self.error("the file was never created".to_string()));
+        };
+        let result = file
+            .sync_all()
+            .map_err(|error| format!("sync failed: {error}"))
+            .and_then(|()| {
+                drop(file);
+                fs::rename(&self.temporary_path, &self.path).map_err(|error| {
+                    format!("rename from {}: {error}", self.temporary_path.display())
+                })
+            });
+        if let Err(cause) = result {
+            // Drop removes the temporary file.
+            self.file = None;
+            return Err(self.error(cause));
+        }
+        temporary::release(&self.temporary_path);
+        sync_parent_dir(&self.path);
+        // Renamed: nothing left for Drop to remove.
+        self.temporary_path = PathBuf::new();
+        Ok(())
     }
-    temporary::release(&temporary_path);
-    sync_parent_dir(path);
-    Ok(())
+
+    /// Where the file goes.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    fn error(&self, cause: String) -> OutputError {
+        OutputError::Write {
+            path: self.path.clone(),
+            cause,
+        }
+    }
+}
+
+impl Drop for Unsynced {
+    fn drop(&mut self) {
+        if self.temporary_path.as_os_str().is_empty() {
+            return;
+        }
+        self.file = None;
+        // The temporary file may not exist (creation failed); either way it must not stay behind.
+        let _ = fs::remove_file(&self.temporary_path);
+        temporary::release(&self.temporary_path);
+    }
 }
 
 /// Makes the rename itself durable. Best effort: not every platform can open a directory.
@@ -177,6 +237,48 @@ mod tests {
             .map(|entry| entry.unwrap().file_name())
             .collect();
         assert_eq!(leftovers, vec![std::ffi::OsString::from("out.bin")]);
+    }
+
+    /// A file written but not committed is only its temporary file: the destination keeps its
+    /// old contents until the commit, and dropping it uncommitted removes the temporary file.
+    #[test]
+    fn an_unsynced_file_appears_only_when_committed() {
+        let temp = tempfile::tempdir().unwrap();
+        let names = || -> Vec<String> {
+            let mut names: Vec<String> = fs::read_dir(temp.path())
+                .unwrap()
+                .map(|entry| entry.unwrap().file_name().to_string_lossy().into_owned())
+                .collect();
+            names.sort();
+            names
+        };
+        let path = temp.path().join("pool.0001.exr");
+        fs::write(&path, b"old frame").unwrap();
+        let write = |text: &'static [u8]| {
+            write_unsynced(&path, move |file| {
+                use std::io::Write;
+                file.write_all(text).map_err(|e| e.to_string())
+            })
+            .unwrap()
+        };
+        let dropped = write(b"never committed");
+        assert_eq!(
+            names().len(),
+            2,
+            "the temporary file beside it: {:?}",
+            names()
+        );
+        assert_eq!(fs::read(&path).unwrap(), b"old frame");
+        drop(dropped);
+        assert_eq!(names(), ["pool.0001.exr"]);
+        assert_eq!(fs::read(&path).unwrap(), b"old frame");
+
+        let committed = write(b"new frame");
+        assert_eq!(committed.path(), path);
+        assert_eq!(fs::read(&path).unwrap(), b"old frame");
+        committed.commit().unwrap();
+        assert_eq!(names(), ["pool.0001.exr"]);
+        assert_eq!(fs::read(&path).unwrap(), b"new frame");
     }
 
     /// A full disk mid-write: the error names the file and the cause, is not blamed on the user

@@ -1,6 +1,6 @@
 //! The OpenEXR writer: single-part scan-line files, written chunk by chunk, with the pixel
-//! compressions of the `exr` crate applied to chunks built straight from snell's layers (no copy
-//! of the whole image in the crate's own structures). Attributes are written in name order, as
+//! compressions of the `exr` crate (ZIP: snell's own, [`super::zip`]) applied to chunks built
+//! straight from snell's layers (no copy of the whole image in the crate's own structures). Attributes are written in name order, as
 //! OpenEXR's own library writes them, so the same frame always gives the same bytes.
 
 use ::exr::compression::Compression;
@@ -47,6 +47,12 @@ pub(crate) fn push_f32(row: &mut Vec<u8>, value: f32) {
 
 pub(crate) fn push_f16(row: &mut Vec<u8>, value: f32) {
     row.extend_from_slice(&::exr::prelude::f16::from_f32(value).to_bits().to_ne_bytes());
+}
+
+thread_local! {
+    /// Each encoding thread's buffer for a chunk's samples, kept from chunk to chunk (a fresh
+    /// one costs page faults on zeroed memory for every chunk).
+    static SAMPLES: std::cell::RefCell<Vec<u8>> = const { std::cell::RefCell::new(Vec::new()) };
 }
 
 /// Everything a file's header says besides its channels.
@@ -208,31 +214,47 @@ impl<W: std::io::Write + std::io::Seek> ChunkStream<W> {
             .map(|chunk| {
                 let first = chunk * lines_per_chunk;
                 let last = (first + lines_per_chunk).min(rows);
-                let mut bytes = Vec::with_capacity(row_bytes * (last - first));
-                for y in first..last {
-                    for channel in &channels {
-                        let before = bytes.len();
-                        (channel.fill)(y, &mut bytes);
-                        let expected = width * channel.sample_type.bytes_per_sample();
-                        if bytes.len() - before != expected {
-                            return Err(format!(
-                                "channel {} gave {} bytes for row {}, not {expected}",
-                                channel.name,
-                                bytes.len() - before,
-                                first_row + y
-                            ));
+                let top = first_row + first;
+                // The chunk's row and size fields, then its pixels.
+                let mut chunk_bytes = Vec::with_capacity(8 + row_bytes * (last - first) / 2);
+                chunk_bytes.extend_from_slice(&(top as i32).to_le_bytes());
+                chunk_bytes.extend_from_slice(&[0; 4]);
+                SAMPLES.with(|samples| -> Result<(), String> {
+                    let mut bytes = samples.borrow_mut();
+                    bytes.clear();
+                    for y in first..last {
+                        for channel in &channels {
+                            let before = bytes.len();
+                            (channel.fill)(y, &mut bytes);
+                            let expected = width * channel.sample_type.bytes_per_sample();
+                            if bytes.len() - before != expected {
+                                return Err(format!(
+                                    "channel {} gave {} bytes for row {}, not {expected}",
+                                    channel.name,
+                                    bytes.len() - before,
+                                    first_row + y
+                                ));
+                            }
                         }
                     }
-                }
-                let top = first_row + first;
-                let section = IntegerBounds::new(Vec2(0, top as i32), Vec2(width, last - first));
-                let packed = compression
-                    .compress_image_section_to_le(header, bytes, section)
-                    .map_err(|error| format!("{compression}: {error}"))?;
-                let mut chunk_bytes = Vec::with_capacity(packed.len() + 8);
-                chunk_bytes.extend_from_slice(&(top as i32).to_le_bytes());
-                chunk_bytes.extend_from_slice(&(packed.len() as i32).to_le_bytes());
-                chunk_bytes.extend_from_slice(&packed);
+                    match compression {
+                        // libdeflate (see zip.rs); the exr crate's codecs for the rest.
+                        Compression::ZIP16 | Compression::ZIP1 => {
+                            super::zip::append_chunk(&bytes, &mut chunk_bytes)
+                        }
+                        _ => {
+                            let section =
+                                IntegerBounds::new(Vec2(0, top as i32), Vec2(width, last - first));
+                            let packed = compression
+                                .compress_image_section_to_le(header, bytes.clone(), section)
+                                .map_err(|error| format!("{compression}: {error}"))?;
+                            chunk_bytes.extend_from_slice(&packed);
+                        }
+                    }
+                    Ok(())
+                })?;
+                let size = (chunk_bytes.len() - 8) as i32;
+                chunk_bytes[4..8].copy_from_slice(&size.to_le_bytes());
                 Ok(chunk_bytes)
             })
             .collect();

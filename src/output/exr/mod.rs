@@ -23,12 +23,13 @@ pub mod cryptomatte;
 mod decode;
 mod encode;
 mod header;
+mod zip;
 
 use std::path::{Path, PathBuf};
 
 use ::exr::compression::Compression;
 
-use super::{write_atomically, OutputError};
+use super::{write_unsynced, OutputError, Unsynced};
 use crate::camera::Camera;
 use crate::draw::{RenderedFrame, NO_OBJECT};
 pub use decode::{read_channels, read_frame_exr};
@@ -516,11 +517,23 @@ pub fn write_frame_exr_strips<'f>(
     meta: &FrameMeta,
     width: u32,
     height: u32,
-    mut next_strip: impl FnMut() -> Result<Option<(u32, std::borrow::Cow<'f, RenderedFrame>)>, String>,
+    next_strip: impl FnMut() -> Result<Option<(u32, std::borrow::Cow<'f, RenderedFrame>)>, String>,
 ) -> Result<(), OutputError> {
+    write_frame_exr_unsynced(path, meta, width, height, next_strip)?.commit()
+}
+
+/// [`write_frame_exr_strips`] but for the sync and rename, which [`Unsynced::commit`] does (on
+/// another thread, for the sequence writer).
+pub(crate) fn write_frame_exr_unsynced<'f>(
+    path: &Path,
+    meta: &FrameMeta,
+    width: u32,
+    height: u32,
+    mut next_strip: impl FnMut() -> Result<Option<(u32, std::borrow::Cow<'f, RenderedFrame>)>, String>,
+) -> Result<Unsynced, OutputError> {
     // Chunks are compressed in parallel (ZIP dominates the cost of a frame) and written in order,
     // so the bytes do not depend on thread timing.
-    write_atomically(path, |file| {
+    write_unsynced(path, |file| {
         let Some((first_row, first)) = next_strip()? else {
             return Err("the frame has no rows".to_string());
         };
