@@ -12,6 +12,7 @@ pub mod checkpoint;
 pub mod coupling;
 #[cfg(test)]
 mod physics_tests;
+pub mod ripple_bounds;
 pub mod ripples;
 pub mod spectral;
 
