@@ -883,6 +883,61 @@ mod tuning {
         print!("{}", figures.to_text());
     }
 
+    /// Tuning aid: the exact method's Newton fallbacks on every frame of every
+    /// `scenes/hard/*.toml` (or `SNELL_HARD_SCENES`, comma-separated) at 1280x720, every
+    /// `SNELL_HARD_STEP`-th frame (default 1), with the refraction stage's median ms: per scene the
+    /// total share of under-water vertices and the worst frame's:
+    /// `cargo test --release --lib frame::bench::tuning::hard_fallbacks -- --ignored --nocapture`.
+    #[test]
+    #[ignore = "tuning aid"]
+    fn hard_fallbacks() {
+        let scenes: Vec<String> = match std::env::var("SNELL_HARD_SCENES") {
+            Ok(list) => list.split(',').map(str::to_string).collect(),
+            Err(_) => {
+                let mut found: Vec<String> = std::fs::read_dir("scenes/hard")
+                    .unwrap()
+                    .map(|e| e.unwrap().path().display().to_string())
+                    .filter(|p| p.ends_with(".toml"))
+                    .collect();
+                found.sort();
+                found
+            }
+        };
+        let step: u32 = std::env::var("SNELL_HARD_STEP").map_or(1, |s| s.parse().unwrap());
+        for scene in scenes {
+            let mut job = RenderJob::prepare(Path::new(&scene)).unwrap();
+            job.method = super::super::Method::Exact;
+            let timeline = *job.timeline();
+            let (mut fallbacks, mut under_water) = (0u64, 0u64);
+            let mut worst = (0.0f64, 0u32, 0u64, 0u64);
+            let mut ms = Vec::new();
+            let mut previous = None;
+            for frame in (timeline.first_frame..=timeline.last_frame).step_by(step as usize) {
+                let r = job.refract(frame, 1280, 720, previous.as_ref()).unwrap();
+                let v = &r.counts.vertices;
+                fallbacks += v.newton_fallback;
+                under_water += v.under_water;
+                let share = v.newton_fallback as f64 / v.under_water.max(1) as f64;
+                if share >= worst.0 {
+                    worst = (share, frame, v.newton_fallback, v.under_water);
+                }
+                ms.push(r.stage_secs["refraction"] * 1e3);
+                previous = Some(r.tracking);
+            }
+            println!(
+                "{scene}: {} frames, Newton fallbacks {fallbacks} of {under_water} under-water vertices ({:.3} %); \
+                 worst frame {} {} of {} ({:.3} %); exact refraction stage median {:.1} ms",
+                ms.len(),
+                100.0 * fallbacks as f64 / under_water.max(1) as f64,
+                worst.1,
+                worst.2,
+                worst.3,
+                100.0 * worst.0,
+                median(&mut ms)
+            );
+        }
+    }
+
     /// Tuning aid: the refraction stage of `pool.toml` frames alone (no GPU), fastest of 3 passes
     /// over frames 1-24: `cargo test --release --lib frame::bench::tuning -- --ignored --nocapture`.
     #[test]

@@ -562,6 +562,7 @@ mod tests {
                     height_range_m: range,
                     slope_bound: slope,
                     curvature_bound: curvature,
+                    local_bounds: None,
                 },
                 membrane: &self.membrane,
                 view: FrameView {

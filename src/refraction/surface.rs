@@ -13,14 +13,19 @@
 //! Every query walks its ray or segment `p(s) = o + s d` by steps that cannot pass the surface.
 //! The clearance `f(s) = +-(p_y(s) - h(p_x(s), p_z(s)))` (positive on the side the query wants)
 //! has `|f'| <= L = |d_y| + G |d_xz|` and `|f''| <= K = C |d_xz|^2`, where `G` bounds `|grad h|`
-//! and `C` bounds the second derivative of `h` along any horizontal direction, over the whole
-//! plane ([`ExactSurface::slope_bound`], [`ExactSurface::curvature_bound`]). From a point with
+//! and `C` bounds the second derivative of `h` along any horizontal direction, over the part of
+//! the plane under the piece of the walk ahead: the whole plane's bounds
+//! ([`ExactSurface::slope_bound`], [`ExactSurface::curvature_bound`]), or, on water with ripples,
+//! the bounds over the piece's horizontal footprint ([`ExactSurface::bounds_over`], per tile of
+//! the ripple grid), so a wake slows only the walks that pass over it. From a point with
 //! `f > 0`, the line `f - L s` and the parabola `f + f' s - K s^2 / 2` are lower bounds of `f`
-//! ahead, so no zero of `f` lies before the larger of their first zeros: that is the next step.
-//! Near a crossing it is a Newton step that stops short of the root; far from the surface it
-//! takes long strides; grazing the surface the steps shrink like `sqrt(2 f / K)` but never jump
-//! over it. Only the part of a segment inside the box of the extent and the surface's height
-//! range ([`ExactSurface::height_range_m`]) is walked: nothing outside it can meet the surface.
+//! ahead (within the piece), so no zero of `f` lies before the larger of their first zeros, or
+//! the piece's end: that is the next step. Near a crossing it is a Newton step that stops short
+//! of the root; far from the surface it takes long strides; grazing the surface the steps shrink
+//! like `sqrt(2 f / K)` but never jump over it. Only the part of a segment inside the box of the
+//! extent and the surface's height range ([`ExactSurface::height_range_m`]) is walked: nothing
+//! outside it can meet the surface; a piece that passes over (or under) the surface's height
+//! range over its footprint is crossed in one step.
 //!
 //! So no crossing is ever missed, whatever the surface's features: [`ExactSurface::first_crossing`]
 //! returns the first point where a ray passes from above the surface to under it (within
@@ -32,6 +37,7 @@
 
 use glam::DVec3;
 
+use crate::sim::ripple_bounds::RippleBounds;
 use crate::water::{HeightField, MembraneGrid};
 
 /// `f` below which a ray is on the surface, metres (far under a pixel at any useful distance).
@@ -61,6 +67,29 @@ pub struct ExactSurface<'a> {
     /// Largest |grad h| and largest |second derivative along a unit horizontal direction|.
     pub slope_bound: f64,
     pub curvature_bound: f64,
+    /// Bounds per part of the plane, finer than the three above where the surface is calmer than
+    /// at its steepest; None: those hold everywhere ([`ExactSurface::bounds_over`]).
+    pub local_bounds: Option<LocalBounds>,
+}
+
+/// The bounds of a surface that is analytic waves (bounds over the whole plane) plus ripples
+/// (bounds per tile of their grid, [`RippleBounds`]).
+#[derive(Clone, Debug)]
+pub struct LocalBounds {
+    /// The waves' height range, slope and curvature bounds (they hold everywhere).
+    pub waves_height_range_m: (f64, f64),
+    pub waves_slope: f64,
+    pub waves_curvature: f64,
+    pub ripples: RippleBounds,
+}
+
+/// Bounds of the surface over a horizontal box ([`ExactSurface::bounds_over`]): its height range,
+/// largest |grad h| and second directional derivative there.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BoxBounds {
+    pub height_range_m: (f64, f64),
+    pub slope: f64,
+    pub curvature: f64,
 }
 
 /// Counts of the root finder's work on one ray (for the bench and tests).
@@ -118,8 +147,11 @@ pub fn of_water<'a>(
     height_field: &'a dyn HeightField,
     extent: MembraneGrid,
 ) -> ExactSurface<'a> {
-    let (mut low, mut high) = waves.height_bounds_m();
-    let (mut slope, mut curvature) = waves.slope_and_curvature_bounds();
+    let waves_height_range_m = waves.height_bounds_m();
+    let (waves_slope, waves_curvature) = waves.slope_and_curvature_bounds();
+    let (mut low, mut high) = waves_height_range_m;
+    let (mut slope, mut curvature) = (waves_slope, waves_curvature);
+    let mut local_bounds = None;
     if let Some(ripples) = ripples {
         let reach = ripples.max_abs_height_m();
         low -= reach;
@@ -127,6 +159,12 @@ pub fn of_water<'a>(
         let (s, c) = ripples.slope_and_curvature_bounds();
         slope += s;
         curvature += c;
+        local_bounds = Some(LocalBounds {
+            waves_height_range_m,
+            waves_slope,
+            waves_curvature,
+            ripples: RippleBounds::new(&ripples),
+        });
     }
     ExactSurface {
         height_field,
@@ -134,6 +172,7 @@ pub fn of_water<'a>(
         height_range_m: (low, high),
         slope_bound: slope,
         curvature_bound: curvature,
+        local_bounds,
     }
 }
 
@@ -178,6 +217,32 @@ impl HeightField for ExactSurface<'_> {
 }
 
 impl ExactSurface<'_> {
+    /// The surface's bounds over the horizontal box `[x0, x1] x [z0, z1]`: the whole plane's
+    /// without [`LocalBounds`], else the waves' plus the ripples' over the box.
+    pub fn bounds_over(&self, x0: f64, z0: f64, x1: f64, z1: f64) -> BoxBounds {
+        match &self.local_bounds {
+            None => BoxBounds {
+                height_range_m: self.height_range_m,
+                slope: self.slope_bound,
+                curvature: self.curvature_bound,
+            },
+            Some(local) => {
+                let ripples = local.ripples.over(x0, z0, x1, z1);
+                let (low, high) = local.waves_height_range_m;
+                BoxBounds {
+                    height_range_m: (low - ripples.reach_m, high + ripples.reach_m),
+                    slope: local.waves_slope + ripples.slope,
+                    curvature: local.waves_curvature + ripples.curvature_per_m,
+                }
+            }
+        }
+    }
+
+    /// [`Self::bounds_over`] the horizontal footprint of the segment `a`-`b`.
+    fn bounds_between(&self, a: DVec3, b: DVec3) -> BoxBounds {
+        self.bounds_over(a.x.min(b.x), a.z.min(b.z), a.x.max(b.x), a.z.max(b.z))
+    }
+
     /// Whether (x, z) is over the water (inside the membrane's extent, borders included, widened
     /// by `slack_m`).
     pub fn covers(&self, x: f64, z: f64, slack_m: f64) -> bool {
@@ -222,7 +287,6 @@ impl ExactSurface<'_> {
         )?;
         let horizontal = direction.x.hypot(direction.z);
         let lipschitz = direction.y.abs() + self.slope_bound * horizontal;
-        let curvature = self.curvature_bound * horizontal * horizontal;
         let clearance = |t: f64, steps: &mut RootSteps| {
             steps.evaluations += 1;
             let p = origin + direction * t;
@@ -241,23 +305,12 @@ impl ExactSurface<'_> {
             t = next;
             (f, df, gradient) = clearance(t, steps);
         }
+        let mut walk = Walk::new(self, origin, direction, t, t1, 1.0, 0.0);
         for _ in 0..MAX_STEPS {
             if f <= SURFACE_HIT_TOLERANCE_M {
                 return Some(self.hit_at(origin, direction, t, gradient));
             }
-            let linear = f / lipschitz;
-            // First zero of f + df s - K s^2 / 2 (the rationalised root, stable as K -> 0).
-            let root = (df * df + 2.0 * curvature * f).sqrt();
-            let parabola = if root - df > 0.0 {
-                2.0 * f / (root - df)
-            } else {
-                f64::INFINITY
-            };
-            let step = linear.max(parabola);
-            let next = t + step;
-            if next > t1 {
-                return None;
-            }
+            let next = walk.next(t, f, df)?;
             let (f_next, df_next, gradient_next) = clearance(next, steps);
             if f_next < 0.0 {
                 return Some(self.bisect(origin, direction, t, next, steps));
@@ -356,14 +409,20 @@ impl ExactSurface<'_> {
         check: &PathCheck,
     ) -> bool {
         let horizontal = d.x.hypot(d.z);
+        // G over the segment's footprint (which holds `from` and every point compared).
+        let slope = if self.local_bounds.is_none() {
+            self.slope_bound
+        } else {
+            self.bounds_between(from, from + d).slope
+        };
         // `from` may be stored in f32: its height may be off by the rounding of its coordinates.
         let rounding_m =
-            4.0 * f32::EPSILON as f64 * (1.0 + from.abs().max_element()) * (1.0 + self.slope_bound);
+            4.0 * f32::EPSILON as f64 * (1.0 + from.abs().max_element()) * (1.0 + slope);
         let excess_m = check.sight_point_gap_m + rounding_m - check.tolerance_m;
         // (rise - G) * guard >= excess, times `horizontal` (>= 0) to avoid dividing.
         side * d.y * check.guard_m
-            >= self.slope_bound * check.guard_m * horizontal + excess_m.max(0.0) * horizontal
-            && side * d.y >= self.slope_bound * horizontal
+            >= slope * check.guard_m * horizontal + excess_m.max(0.0) * horizontal
+            && side * d.y >= slope * horizontal
     }
 
     /// Walks `from + s d`, s in `[start, 1]`, and whether every point over the extent is on
@@ -391,9 +450,6 @@ impl ExactSurface<'_> {
         ) else {
             return true;
         };
-        let horizontal = d.x.hypot(d.z);
-        let lipschitz = d.y.abs() + self.slope_bound * horizontal;
-        let curvature = self.curvature_bound * horizontal * horizontal;
         let clearance = |s: f64| {
             let p = from + d * s;
             let (h, (gx, gz)) = self.height_field.height_and_gradient(p.x, p.z);
@@ -404,20 +460,146 @@ impl ExactSurface<'_> {
         };
         let mut s = s0;
         let (mut f, mut df) = clearance(s);
+        let mut walk = Walk::new(self, from, d, s0, s1, side, tolerance_m);
         for _ in 0..MAX_STEPS {
             // Past the tolerance, or touching it on the way there.
             if f < 0.0 || (f <= SURFACE_HIT_TOLERANCE_M && df <= 0.0) {
                 return false;
             }
-            let step = (f / lipschitz).max(parabola_zero(f, df, curvature));
-            if s + step > s1 {
+            let Some(next) = walk.next(s, f, df) else {
                 return true;
-            }
-            s += step;
+            };
+            s = next;
             (f, df) = clearance(s);
         }
         // Grazing for ever: touching.
         false
+    }
+}
+
+/// The steps of one walk along `p(s) = origin + s d` for s up to `end` (the module docs'
+/// guarantee), on the clearance `f(s) = side (p_y(s) - h) + tolerance`: from a point with `f > 0`
+/// and slope `df`, where to evaluate `f` next, or None when no zero of `f` lies before `end`.
+///
+/// The bounds `L` and `K` hold over a piece `[start, piece_end]` of the walk: the whole rest of it
+/// with bounds over the whole plane, else (with [`LocalBounds`]) the surface's bounds over the
+/// piece's horizontal footprint ([`ExactSurface::bounds_over`]). A step that would pass the
+/// piece's end (its lower bounds have no zero in the piece) stops there, where the next piece
+/// starts. Pieces start as long as the rest of the walk and shrink toward twice the step the
+/// bounds give (at least a ripple tile across), so near a wake they see only the wake's tiles they
+/// cross, and grow again (doubling) where the surface is calm. Over a piece the surface's local
+/// height range alone may prove `f > 0` (the segment passes over or under every ripple there):
+/// then the walk goes to the piece's end without a step inside.
+struct Walk<'s, 'a> {
+    surface: &'s ExactSurface<'a>,
+    origin: DVec3,
+    d: DVec3,
+    end: f64,
+    side: f64,
+    tolerance: f64,
+    /// Whether pieces shorter than the rest get their own bounds.
+    local: bool,
+    /// Shortest piece: a ripple tile across, as a parameter length.
+    min_len: f64,
+    /// The length the next piece is first tried at.
+    next_len: f64,
+    /// The current piece and its bounds on `|f'|` and `|f''|`.
+    piece_end: f64,
+    lipschitz: f64,
+    curvature: f64,
+    /// The local height range proves `f > 0` over the whole piece.
+    piece_clear: bool,
+}
+
+impl<'s, 'a> Walk<'s, 'a> {
+    #[inline(always)]
+    fn new(
+        surface: &'s ExactSurface<'a>,
+        origin: DVec3,
+        d: DVec3,
+        start: f64,
+        end: f64,
+        side: f64,
+        tolerance: f64,
+    ) -> Self {
+        let horizontal = d.x.hypot(d.z);
+        let tile_m = surface.local_bounds.as_ref().map(|l| l.ripples.tile_m());
+        let mut walk = Walk {
+            surface,
+            origin,
+            d,
+            end,
+            side,
+            tolerance,
+            local: tile_m.is_some(),
+            min_len: tile_m.map_or(f64::INFINITY, |t| t / horizontal),
+            next_len: f64::INFINITY,
+            piece_end: end,
+            lipschitz: d.y.abs() + surface.slope_bound * horizontal,
+            curvature: surface.curvature_bound * horizontal * horizontal,
+            piece_clear: false,
+        };
+        if walk.local {
+            // Made at the first step, which knows f there.
+            walk.piece_end = start;
+        }
+        walk
+    }
+
+    /// The next parameter to evaluate the clearance at, from `s` where it is `f > 0` with slope
+    /// `df`; None when the walk reaches `end` with no zero of it.
+    #[inline(always)]
+    fn next(&mut self, s: f64, f: f64, df: f64) -> Option<f64> {
+        if self.local && s >= self.piece_end {
+            self.start_piece(s, f, df);
+        }
+        let step = if self.piece_clear {
+            f64::INFINITY
+        } else {
+            (f / self.lipschitz).max(parabola_zero(f, df, self.curvature))
+        };
+        if s + step <= self.piece_end {
+            Some(s + step)
+        } else if self.piece_end < self.end {
+            Some(self.piece_end)
+        } else {
+            None
+        }
+    }
+
+    /// A piece from `s`: bounds over its footprint, shorter pieces tried while they give a step
+    /// that is much longer than the longer piece's.
+    #[inline(never)]
+    fn start_piece(&mut self, s: f64, f: f64, df: f64) {
+        let horizontal = self.d.x.hypot(self.d.z);
+        let mut len = (self.end - s).min(self.next_len.max(self.min_len));
+        loop {
+            let (a, b) = (self.origin + self.d * s, self.origin + self.d * (s + len));
+            let bounds = self.surface.bounds_between(a, b);
+            self.piece_end = s + len;
+            self.lipschitz = self.d.y.abs() + bounds.slope * horizontal;
+            self.curvature = bounds.curvature * horizontal * horizontal;
+            // f >= side (p_y - h) + tolerance with h within the range, linear along the piece.
+            let (low, high) = bounds.height_range_m;
+            let above = |y: f64| {
+                if self.side > 0.0 {
+                    y - high
+                } else {
+                    low - y
+                }
+            };
+            self.piece_clear = above(a.y).min(above(b.y)) + self.tolerance > 0.0;
+            if self.piece_clear || len <= self.min_len {
+                break;
+            }
+            let step = (f / self.lipschitz).max(parabola_zero(f, df, self.curvature));
+            let shorter = (2.0 * step).max(self.min_len);
+            if step >= len || shorter >= 0.5 * len {
+                break;
+            }
+            len = shorter;
+        }
+        self.next_len = 2.0 * len;
     }
 }
 
@@ -455,6 +637,7 @@ mod tests {
             height_range_m: (0.0, a),
             slope_bound: slope,
             curvature_bound: curvature,
+            local_bounds: None,
         }
     }
 
@@ -507,6 +690,7 @@ mod tests {
             height_range_m: (-0.25, -0.25),
             slope_bound: 0.0,
             curvature_bound: 0.0,
+            local_bounds: None,
         };
         let mut steps = RootSteps::default();
         let origin = DVec3::new(0.0, 1.0, -1.0);
@@ -539,6 +723,7 @@ mod tests {
             height_range_m: (-0.07, 0.07),
             slope_bound: slope,
             curvature_bound: curvature,
+            local_bounds: None,
         };
         let mut steps = RootSteps::default();
         let mut hits = 0;
@@ -602,6 +787,7 @@ mod tests {
             height_range_m: (-0.07, 0.07),
             slope_bound: 0.05 * 3.0 + 0.02 * (49.0f64 + 4.0).sqrt(),
             curvature_bound: 0.05 * 9.0 + 0.02 * 53.0,
+            local_bounds: None,
         };
         let mut rng = crate::seeded::SplitMix64::new(0x5EED_5EE5);
         let tolerance_m = 1e-3;

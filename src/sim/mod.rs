@@ -12,10 +12,11 @@ pub mod checkpoint;
 pub mod coupling;
 #[cfg(test)]
 mod physics_tests;
-#[cfg(test)]
-mod wake_tests;
+pub mod ripple_bounds;
 pub mod ripples;
 pub mod spectral;
+#[cfg(test)]
+mod wake_tests;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};

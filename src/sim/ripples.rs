@@ -254,25 +254,46 @@ impl HeightField for RippleField<'_> {
 /// and of |second-derivative weights|, rounded up (checked by a test against a fine sampling).
 const CATMULL_ROM_ABS_SUMS: (f64, f64, f64) = (1.25, 3.0, 12.0);
 
+/// Bounds of the field wherever every node its bicubic weighs there has |height| <= `u`
+/// (metres), on a grid of `spacing_m`: (largest |height|, largest |grad h|, largest second
+/// derivative along a unit horizontal direction). The field is a weighted sum of 4 x 4 nodes, so
+/// each derivative is at most the sum of |weights| times `u`:
+/// - |h| <= w^2 u (Catmull-Rom overshoots the nodes by at most a quarter per axis);
+/// - |d/dx| <= dw w u / spacing, so |grad| <= sqrt(2) of that;
+/// - |u^T H u| <= |h_xx| + 2 |h_xz| + |h_zz| <= (2 ddw w + 2 dw^2) u / spacing^2.
+///
+/// One formula for the whole plane ([`RippleField::slope_and_curvature_bounds`]) and for its
+/// tiles ([`super::ripple_bounds::RippleBounds`]).
+pub(crate) fn bounds_for_node_height(u: f64, spacing_m: f64) -> (f64, f64, f64) {
+    let (w, dw, ddw) = CATMULL_ROM_ABS_SUMS;
+    (
+        w * w * u,
+        std::f64::consts::SQRT_2 * dw * w * u / spacing_m,
+        (2.0 * ddw * w + 2.0 * dw * dw) * u / (spacing_m * spacing_m),
+    )
+}
+
 impl RippleField<'_> {
+    /// The state the field interpolates.
+    pub fn state(&self) -> &RippleState {
+        self.state
+    }
+
     /// Largest |height| of the field, metres (the nodes': Catmull-Rom overshoots them by at most
-    /// a quarter, see [`Self::slope_and_curvature_bounds`]'s weights).
+    /// a quarter, see [`bounds_for_node_height`]).
     pub fn max_abs_height_m(&self) -> f64 {
-        CATMULL_ROM_ABS_SUMS.0 * CATMULL_ROM_ABS_SUMS.0 * self.state.max_abs_height_m() as f64
+        bounds_for_node_height(self.state.max_abs_height_m() as f64, self.state.settings.spacing_m).0
     }
 
     /// Bounds over the whole plane: the largest |grad h| and the largest second directional
-    /// derivative along a unit horizontal direction, from the largest |node height| (the field is
-    /// a weighted sum of nodes, so each derivative is bounded by the sum of |weights| times it).
-    /// Conservative, which is what a root finder stepping along a ray needs.
+    /// derivative along a unit horizontal direction, from the largest |node height|
+    /// ([`bounds_for_node_height`]). Conservative, which is what a root finder stepping along a
+    /// ray needs; [`super::ripple_bounds::RippleBounds`] gives them per part of the plane.
     pub fn slope_and_curvature_bounds(&self) -> (f64, f64) {
-        let s = &self.state.settings;
-        let u = self.state.max_abs_height_m() as f64;
-        let (w, dw, ddw) = CATMULL_ROM_ABS_SUMS;
-        // |d/dx| <= dw * w * u / spacing; |grad| <= sqrt(2) of that.
-        let slope = std::f64::consts::SQRT_2 * dw * w * u / s.spacing_m;
-        // |u^T H u| <= |h_xx| + 2 |h_xz| + |h_zz|.
-        let curvature = (2.0 * ddw * w + 2.0 * dw * dw) * u / (s.spacing_m * s.spacing_m);
+        let (_, slope, curvature) = bounds_for_node_height(
+            self.state.max_abs_height_m() as f64,
+            self.state.settings.spacing_m,
+        );
         (slope, curvature)
     }
 }

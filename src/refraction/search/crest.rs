@@ -24,21 +24,40 @@ pub(crate) struct CrestCheck {
     /// The path check: the guard, the faceting tolerance ([`faceting_tolerance`]) and the bound
     /// on a facet's distance from the exact surface ([`facet_gap_bound_m`]).
     pub(crate) check: PathCheck,
+    /// The membrane cell's squared diagonal and the largest coordinate of its vertices: what
+    /// [`facet_gap_m`] needs for a gap from the bounds near one sight point.
+    diagonal_squared_m2: f64,
+    scale_m: f64,
 }
 
 impl CrestCheck {
     pub(super) fn new(membrane: &Membrane, surface: &ExactSurface, spacing_m: f64) -> Self {
+        let grid = membrane.grid;
+        let diagonal_squared_m2 = grid.cell_size_x_m().powi(2) + grid.cell_size_z_m().powi(2);
+        let scale_m = membrane
+            .positions
+            .iter()
+            .fold(1.0_f64, |m, p| m.max(p.abs().max_element() as f64));
         Self {
             spacing_m,
             check: PathCheck {
                 guard_m: CREST_GUARD_PER_SPACING * spacing_m,
                 tolerance_m: faceting_tolerance(membrane, surface),
-                sight_point_gap_m: facet_gap_bound_m(membrane, surface),
+                sight_point_gap_m: facet_gap_m(
+                    surface.curvature_bound,
+                    surface.slope_bound,
+                    diagonal_squared_m2,
+                    scale_m,
+                ),
             },
+            diagonal_squared_m2,
+            scale_m,
         }
     }
 
     /// Whether the path `eye -> sight_point -> point` is blocked (the sight point on a facet).
+    /// With bounds per part of the plane, the facet's gap is bounded by the surface's bounds
+    /// within a cell diagonal of the sight point (the facet holding it lies there).
     pub(crate) fn blocks(
         &self,
         surface: &ExactSurface,
@@ -46,7 +65,22 @@ impl CrestCheck {
         sight_point: DVec3,
         point: DVec3,
     ) -> bool {
-        !surface.path_is_clear(eye, sight_point, point, &self.check)
+        if surface.local_bounds.is_none() {
+            return !surface.path_is_clear(eye, sight_point, point, &self.check);
+        }
+        let r = self.diagonal_squared_m2.sqrt();
+        let s = sight_point;
+        let near = surface.bounds_over(s.x - r, s.z - r, s.x + r, s.z + r);
+        let check = PathCheck {
+            sight_point_gap_m: facet_gap_m(
+                near.curvature,
+                near.slope,
+                self.diagonal_squared_m2,
+                self.scale_m,
+            ),
+            ..self.check
+        };
+        !surface.path_is_clear(eye, sight_point, point, &check)
     }
 }
 
@@ -57,17 +91,11 @@ impl CrestCheck {
 /// surface's curvature bound. For a membrane cell's right triangle `sum b_i |x_i - x|^2 =
 /// R^2 - |x - c|^2 <= R^2` (c, R: circumcentre and radius, `R` half the cell's diagonal), and the
 /// negative barycentrics add at most `2 * 3 eps` of the squared diagonal. Plus the f32 rounding of
-/// the vertex heights and positions.
-fn facet_gap_bound_m(membrane: &Membrane, surface: &ExactSurface) -> f64 {
-    let grid = membrane.grid;
-    let diagonal_squared = grid.cell_size_x_m().powi(2) + grid.cell_size_z_m().powi(2);
-    let scale = membrane
-        .positions
-        .iter()
-        .fold(1.0_f64, |m, p| m.max(p.abs().max_element() as f64));
-    let curvature = surface.curvature_bound;
-    0.5 * curvature * diagonal_squared * (0.25 + 7.0 * CONTAINMENT_EPS)
-        + 8.0 * f32::EPSILON as f64 * scale * (1.0 + surface.slope_bound)
+/// the vertex heights and positions (coordinates up to `scale_m`). `curvature` and `slope`: the
+/// surface's bounds over the facet.
+fn facet_gap_m(curvature: f64, slope: f64, diagonal_squared_m2: f64, scale_m: f64) -> f64 {
+    0.5 * curvature * diagonal_squared_m2 * (0.25 + 7.0 * CONTAINMENT_EPS)
+        + 8.0 * f32::EPSILON as f64 * scale_m * (1.0 + slope)
 }
 
 /// Twice the largest gap between the faceted membrane and the exact surface, sampled at facet

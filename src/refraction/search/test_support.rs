@@ -77,6 +77,7 @@ pub fn exact<'a>(
         height_range_m,
         slope_bound,
         curvature_bound,
+        local_bounds: None,
     }
 }
 
