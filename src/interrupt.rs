@@ -60,7 +60,14 @@ fn stop_at_once(signal: i32) -> ! {
     if let Some(hint) = RESUME_HINT.get() {
         errln!("to finish: {hint}");
     }
-    std::process::exit(exit_code_for(signal).into())
+    use std::io::Write;
+    let _ = std::io::stdout().flush();
+    let _ = std::io::stderr().flush();
+    // _exit, not exit, as in `exit_at_first_signal`: exit runs the C libraries' exit handlers
+    // (Mesa's, LLVM's) while the render and writer threads may still be inside them; in
+    // `bash .ci/run` at 3957d77 that killed the process by a signal instead of exit 130.
+    // SAFETY: _exit ends the process at once; nothing runs after it.
+    unsafe { libc::_exit(exit_code_for(signal).into()) }
 }
 
 /// For a command that stops at the first signal (`snell preview`): handles SIGINT and SIGTERM
