@@ -327,6 +327,12 @@ enum Command {
     /// (how differently the method moves it on screen than the truth does), mean and p99 (from
     /// the range's second frame); and the popping counts.
     ///
+    /// Per frame, how hard it is by the truth: the share of the under-water vertices with two or
+    /// more images by the independent image oracle (a Lipschitz-bounded scan plus Newton on
+    /// Fermat's principle, sharing only the height field with the methods), over a systematic
+    /// sample of --oracle-samples vertices, with its 95 % interval (stability_oracle.csv; the
+    /// summary gives the lowest frame). --oracle-only measures just that, without rendering.
+    ///
     /// Writes into DIR: stability.csv (one row per frame and method, every figure),
     /// stability_summary.txt (printed too: the worst frame per figure and method) and the chart
     /// over time as stability.svg and stability.png (one line per method). The reference costs
@@ -348,6 +354,14 @@ enum Command {
         /// Output directory (default: output/<scene name>/stability/).
         #[arg(long, value_name = "DIR")]
         out: Option<PathBuf>,
+        /// Under-water vertices per frame the image oracle measures, a systematic sample (every
+        /// k-th); 0 measures all of them (seconds to minutes a frame in a wake).
+        #[arg(long, value_name = "N", default_value_t = snell::stability::oracle_share::DEFAULT_SAMPLES)]
+        oracle_samples: usize,
+        /// Only the oracle's multi-image share per frame: no renders (no GPU needed), writes
+        /// stability_oracle.csv and the summary.
+        #[arg(long)]
+        oracle_only: bool,
     },
 }
 
@@ -453,7 +467,16 @@ fn run(cli: Cli) -> u8 {
             size,
             methods,
             out,
-        } => stability(&scene, frames.as_deref(), &size, &methods, out),
+            oracle_samples,
+            oracle_only,
+        } => stability(
+            &scene,
+            frames.as_deref(),
+            &size,
+            &methods,
+            out,
+            (oracle_samples, oracle_only),
+        ),
         Command::Preview {
             scene,
             port,
@@ -779,6 +802,7 @@ fn stability(
     size: &str,
     methods: &str,
     out: Option<PathBuf>,
+    (oracle_samples, oracle_only): (usize, bool),
 ) -> Result<(), SnellError> {
     let (width, height) = frame::parse_size(size)?;
     let methods = snell::stability::parse_methods(methods)?;
@@ -802,11 +826,23 @@ fn stability(
             methods: methods.clone(),
             out_dir,
             progress: true,
+            oracle_samples,
+            oracle_only,
         },
     )?;
+    if oracle_only {
+        out!("{}", outcome.summary_text(&[]));
+        outln!(
+            "wrote {} and {}",
+            outcome.oracle_csv.display(),
+            outcome.summary.display()
+        );
+        return Ok(());
+    }
     out!("{}", outcome.summary_text(&methods));
     outln!(
-        "wrote {}, {}, {} and {}",
+        "wrote {}, {}, {}, {} and {}",
+        outcome.oracle_csv.display(),
         outcome.csv.display(),
         outcome.summary.display(),
         outcome.svg.display(),

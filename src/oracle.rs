@@ -19,7 +19,14 @@
 //! `asin(n1 / n2)` from the normal, which tilts at most `atan G` from the vertical, so `S` lies
 //! within `(y_max - V.y) tan(asin(n1 / n2) + atan G)` of `V` horizontally) and splits every cell
 //! it cannot rule out, down to cells of [`LEAF_HALF_SIZE_M`]: every stationary point lies in one
-//! of those leaves. Newton's method from each leaf's centre, within a micrometre of the
+//! of those leaves. The argument needs the bounds only over the cell it rules out: where the
+//! surface states them region by region ([`LocalBounds`]: a wake is steep only near the body that
+//! makes it), each cell's `Lambda` takes `G`, `C` and the height range over the cell itself, and
+//! `d_E`, `d_V` also from below by the vertical clearance to that height range and the horizontal
+//! gap between the cell and the eye or the point, so calm water is ruled out in large cells; and
+//! a cell farther from the point horizontally than `(y_max - V.y) tan(asin(n1 / n2) + atan G)`
+//! with the cell's own `y_max` and `G` holds no sight point at all.
+//! Newton's method from each leaf's centre, within a micrometre of the
 //! stationary point, converges to it unless the point is degenerate (`det Hess L = 0`: a fold,
 //! or caustic, where two images meet); a leaf whose solve fails is counted as unresolved
 //! ([`OracleImages::unresolved_leaves`]): there `|F|` is within `Lambda` times a micrometre of
@@ -59,6 +66,26 @@ pub struct OracleWater<'a> {
     /// Indices of refraction above (the eye's side) and below.
     pub n_above: f64,
     pub n_below: f64,
+    /// Tighter bounds region by region, where the surface knows them (a wake's steepest node sets
+    /// the global ones; calm water elsewhere need not be scanned as finely as the wake).
+    pub local_bounds: Option<&'a dyn LocalBounds>,
+}
+
+/// Bounds of the surface over one rectangle of the plane.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RegionBounds {
+    /// Lowest and highest height over the rectangle, metres.
+    pub height_range_m: (f64, f64),
+    /// Largest |grad h| and largest |second derivative along a horizontal direction| over it.
+    pub slope_bound: f64,
+    pub curvature_bound: f64,
+}
+
+/// A surface's bounds region by region. Each answer must hold at every point of the rectangle
+/// asked about (the scan's proof that a cell holds no image rests on it).
+pub trait LocalBounds: Sync {
+    /// Bounds over `[min, max]` (x, z).
+    fn over(&self, min: DVec2, max: DVec2) -> RegionBounds;
 }
 
 /// One image the oracle found.
@@ -95,6 +122,27 @@ impl OracleWater<'_> {
     fn covers(&self, x: f64, z: f64) -> bool {
         let e = &self.extent;
         x >= e.min_x && x <= e.max_x && z >= e.min_z && z <= e.max_z
+    }
+
+    /// The bounds over `[min, max]`: the global ones, tightened by the local ones where given.
+    fn region(&self, min: DVec2, max: DVec2) -> RegionBounds {
+        let global = RegionBounds {
+            height_range_m: self.height_range_m,
+            slope_bound: self.slope_bound,
+            curvature_bound: self.curvature_bound,
+        };
+        let Some(local) = self.local_bounds else {
+            return global;
+        };
+        let l = local.over(min, max);
+        RegionBounds {
+            height_range_m: (
+                l.height_range_m.0.max(global.height_range_m.0),
+                l.height_range_m.1.min(global.height_range_m.1),
+            ),
+            slope_bound: l.slope_bound.min(global.slope_bound),
+            curvature_bound: l.curvature_bound.min(global.curvature_bound),
+        }
     }
 
     fn surface_point(&self, xz: DVec2) -> DVec3 {
@@ -218,6 +266,19 @@ impl OracleWater<'_> {
             if f0 + f1 >= lipschitz * (s1 - s0) {
                 continue;
             }
+            if self.local_bounds.is_some() {
+                // The piece's own slope bound, over the box its horizontal part spans.
+                let (a, b) = (from + d * s0, from + d * s1);
+                let slope = self
+                    .region(
+                        DVec2::new(a.x.min(b.x), a.z.min(b.z)),
+                        DVec2::new(a.x.max(b.x), a.z.max(b.z)),
+                    )
+                    .slope_bound;
+                if f0 + f1 >= (d.y.abs() + slope * horizontal) * (s1 - s0) {
+                    continue;
+                }
+            }
             if s1 - s0 < 1e-12 {
                 return false;
             }
@@ -242,7 +303,8 @@ impl OracleWater<'_> {
         let (n1, n2) = (self.n_above, self.n_below);
         let g = self.slope_bound;
         // Where the sight point can be (module docs); the whole extent if the bound says nothing.
-        let angle = (n1 / n2).min(1.0).asin() + g.atan();
+        let refracted_angle = (n1 / n2).min(1.0).asin();
+        let angle = refracted_angle + g.atan();
         let reach_m = if angle < 0.5 * std::f64::consts::PI - 1e-9 {
             (self.height_range_m.1 - point.y) * angle.tan()
         } else {
@@ -268,7 +330,6 @@ impl OracleWater<'_> {
             return out;
         }
         let d_e = eye_clearance / tilt;
-        let lambda = (1.0 + g * g) * (n1 / d_e + n2 / d_v) + (n1 + n2) * self.curvature_bound;
         let half = 0.5 * (hi - lo).max_element();
         let centre = 0.5 * (lo + hi);
         // Cells (centre, half-size) still to examine; leaves (centres) left after the scan.
@@ -286,6 +347,25 @@ impl OracleWater<'_> {
                 out.unscanned = true;
                 return out;
             }
+            // Lambda over this cell: the bounds over it, and the distances from the eye and the
+            // point to its surface points bounded from below by the global bound, the vertical
+            // clearance to the cell's height range and the horizontal gap to the cell.
+            let b = self.region(c - DVec2::splat(r), c + DVec2::splat(r));
+            let gap = |q: DVec3| (DVec2::new(q.x, q.z) - c).abs() - DVec2::splat(r);
+            let gap = |q: DVec3| gap(q).max(DVec2::ZERO).length();
+            let d_e_cell = d_e.max(eye.y - b.height_range_m.1).max(gap(eye));
+            let d_v_cell = d_v.max(b.height_range_m.0 - point.y).max(gap(point));
+            // No sight point in a cell farther from the point than a refracted ray leaving it can
+            // travel sideways on its way down (the module docs' region, with the cell's bounds).
+            let cell_angle = refracted_angle + b.slope_bound.atan();
+            if cell_angle < 0.5 * std::f64::consts::PI - 1e-9
+                && gap(point) > (b.height_range_m.1 - point.y) * cell_angle.tan()
+            {
+                continue;
+            }
+            let lambda = (1.0 + b.slope_bound * b.slope_bound)
+                * (n1 / d_e_cell + n2 / d_v_cell)
+                + (n1 + n2) * b.curvature_bound;
             if grad.length() > lambda * r * std::f64::consts::SQRT_2 {
                 continue;
             }
@@ -374,6 +454,7 @@ mod tests {
             curvature_bound: c,
             n_above: N_AIR,
             n_below: N_WATER,
+            local_bounds: None,
         }
     }
 

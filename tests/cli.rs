@@ -551,6 +551,13 @@ fn every_hard_scene_renders() {
     rendered.sort();
     assert_eq!(
         rendered,
-        ["fast_camera", "grazing_eye", "steep_waves", "wading_wake"]
+        [
+            "fast_camera",
+            "grazing_eye",
+            "rising_object",
+            "steep_waves",
+            "wading_wake",
+            "wall_crossing"
+        ]
     );
 }

@@ -2,7 +2,9 @@
 //! row per frame and method with every column, the reference measured against itself exactly
 //! zero (position and temporal, with points tracked), a linear method's figures present and
 //! finite, the summary naming each method's worst frames, a PNG that decodes and an SVG that
-//! parses, and bad arguments refused with exit 2.
+//! parses, and bad arguments refused with exit 2. The oracle's multi-image share per frame: in
+//! its own CSV over the same under-water vertices the renderer counts, and alone with
+//! --oracle-only.
 
 mod common;
 use common::{snell, TINY};
@@ -11,7 +13,8 @@ use std::collections::HashMap;
 use std::path::Path;
 
 use snell::stability::{
-    csv_header, plot, CSV_FILE_NAME, PNG_FILE_NAME, SUMMARY_FILE_NAME, SVG_FILE_NAME,
+    csv_header, plot, CSV_FILE_NAME, ORACLE_CSV_FILE_NAME, ORACLE_CSV_HEADER, PNG_FILE_NAME,
+    SUMMARY_FILE_NAME, SVG_FILE_NAME,
 };
 
 const SIZE: &str = "96x54";
@@ -120,6 +123,19 @@ fn stability_of_tiny_measures_every_frame_and_method() {
         }
     }
 
+    // The oracle measured every vertex of tiny's few hundred under water (fewer than the
+    // default sample), the same ones the renderer counts.
+    let oracle = rows_of(&std::fs::read_to_string(out.join(ORACLE_CSV_FILE_NAME)).unwrap());
+    assert_eq!(oracle.len(), 3);
+    for (share, row) in oracle.iter().zip(rows.iter().step_by(2)) {
+        assert_eq!(share["frame"], row["frame"]);
+        assert_eq!(share["under_water_vertices"], row["under_water_vertices"], "{share:?}");
+        assert_eq!(share["sampled"], share["under_water_vertices"], "{share:?}");
+        let fraction = number(share, "multi_image_fraction");
+        assert!((0.0..=1.0).contains(&fraction), "{share:?}");
+        assert_eq!(number(row, "oracle_multi_image_fraction"), fraction, "{row:?}");
+    }
+
     let summary = std::fs::read_to_string(out.join(SUMMARY_FILE_NAME)).unwrap();
     assert!(
         stdout.contains(&summary),
@@ -139,6 +155,56 @@ fn stability_of_tiny_measures_every_frame_and_method() {
     let svg = std::fs::read_to_string(out.join(SVG_FILE_NAME)).unwrap();
     assert!(svg.trim_start().starts_with("<svg") && svg.trim_end().ends_with("</svg>"));
     assert!(svg.contains("equal-t") && svg.contains("frame"));
+}
+
+/// `--oracle-only`: no renders, one row per frame of the oracle's share over a systematic sample
+/// of the asked size, its interval around it, every sampled vertex settled or counted unsettled,
+/// and the summary naming the lowest frame.
+#[test]
+fn stability_oracle_only_reports_the_multi_image_share_per_frame() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("tiny.toml"), TINY).unwrap();
+    let out = dir.path().join("oracle");
+    let output = snell(
+        &[
+            "stability",
+            "tiny.toml",
+            "--frames",
+            "2-3",
+            "--oracle-only",
+            "--oracle-samples",
+            "50",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        dir.path(),
+    );
+    let (stdout, stderr) = (text_of(&output.stdout), text_of(&output.stderr));
+    assert!(output.status.success(), "stdout:\n{stdout}\nstderr:\n{stderr}");
+    let csv = std::fs::read_to_string(out.join(ORACLE_CSV_FILE_NAME)).unwrap();
+    assert_eq!(csv.lines().next().unwrap(), ORACLE_CSV_HEADER);
+    let rows = rows_of(&csv);
+    assert_eq!(
+        rows.iter().map(|r| r["frame"].as_str()).collect::<Vec<_>>(),
+        ["2", "3"]
+    );
+    for row in &rows {
+        let (sampled, total) = (number(row, "sampled"), number(row, "under_water_vertices"));
+        assert!(sampled <= 50.0 && sampled >= 25.0 && total > sampled, "{row:?}");
+        assert_eq!(number(row, "certain") + number(row, "uncertain"), sampled, "{row:?}");
+        let (low, p, high) = (
+            number(row, "fraction_low95"),
+            number(row, "multi_image_fraction"),
+            number(row, "fraction_high95"),
+        );
+        assert!(low <= p && p <= high && high - low > 0.0, "{row:?}");
+    }
+    assert!(!out.join(CSV_FILE_NAME).exists(), "no renders, no method rows");
+    let summary = std::fs::read_to_string(out.join(SUMMARY_FILE_NAME)).unwrap();
+    assert!(stdout.contains(&summary));
+    for needle in ["two or more images by the oracle: lowest", "systematic sample of"] {
+        assert!(summary.contains(needle), "{needle:?} in\n{summary}");
+    }
 }
 
 #[test]

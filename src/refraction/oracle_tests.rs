@@ -72,6 +72,7 @@ fn for_each_point(points_per_case: usize, mut visit: impl FnMut(usize, DVec3, &F
             curvature_bound: water.curvature_bound,
             n_above: N_AIR,
             n_below: N_WATER,
+            local_bounds: None,
         };
         let setup = RefractionSetup {
             eye: case.eye.as_vec3(),

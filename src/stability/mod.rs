@@ -9,7 +9,13 @@
 //! over all same-object pixels, outside flagged pixels and outside the reference's fold band), with
 //! the reference as A and the method as B. The temporal figure is [`temporal::temporal_error`]
 //! between each frame and the one before it in the range; the first frame of the range has none.
+//!
+//! Per frame it also reports how hard the frame is by the truth: the share of under-water
+//! vertices with two or more images by the independent oracle ([`oracle_share`]), in its own CSV
+//! (`stability_oracle.csv`), in a column of the main one and in the summary (the lowest frame: a
+//! hard scene must stay hard in every frame). `oracle_only` measures that alone, without rendering.
 
+pub mod oracle_share;
 pub mod plot;
 pub mod temporal;
 
@@ -23,6 +29,7 @@ use crate::output::position_error::{
     compare_positions, CompareOptions, PositionComparison, PositionError, Side,
 };
 use crate::refraction::flags::FlagCounts;
+use oracle_share::{oracle_share, OracleShare};
 use temporal::{temporal_error, FramePair, TemporalError};
 
 /// The methods measured unless `--methods` says otherwise.
@@ -32,6 +39,7 @@ pub const CSV_FILE_NAME: &str = "stability.csv";
 pub const SUMMARY_FILE_NAME: &str = "stability_summary.txt";
 pub const SVG_FILE_NAME: &str = "stability.svg";
 pub const PNG_FILE_NAME: &str = "stability.png";
+pub const ORACLE_CSV_FILE_NAME: &str = "stability_oracle.csv";
 
 /// What `snell stability` does.
 pub struct StabilityOptions {
@@ -41,6 +49,10 @@ pub struct StabilityOptions {
     pub methods: Vec<Method>,
     pub out_dir: PathBuf,
     pub progress: bool,
+    /// Under-water vertices the oracle measures per frame (a systematic sample; 0: all of them).
+    pub oracle_samples: usize,
+    /// Measure only the oracle's multi-image share: no renders, no position figures.
+    pub oracle_only: bool,
 }
 
 /// One method at one frame, against the reference.
@@ -60,6 +72,9 @@ pub struct StabilityOutcome {
     pub size: (u32, u32),
     pub adapter: String,
     pub rows: Vec<FrameFigures>,
+    /// The oracle's multi-image share, one per frame in frame order.
+    pub oracle: Vec<OracleShare>,
+    pub oracle_csv: PathBuf,
     pub csv: PathBuf,
     pub summary: PathBuf,
     pub svg: PathBuf,
@@ -96,6 +111,21 @@ pub fn run_stability(
     crate::output::ensure_output_dir(&options.out_dir)?;
     crate::output::check_writable(&options.out_dir)?;
     let scene = job.scene_name().to_string();
+    if options.oracle_only {
+        let bar = progress_bar(options.frames.len() as u64, options.progress);
+        let mut oracle = Vec::new();
+        for frame in options.frames.frames() {
+            bar.set_message(format!("frame {frame}: oracle"));
+            oracle.push(oracle_share(job, frame, options.oracle_samples)?);
+            bar.inc(1);
+        }
+        bar.finish_and_clear();
+        let adapter = "no renderer (--oracle-only)".to_string();
+        let outcome = StabilityOutcome::new(scene, options, adapter, Vec::new(), oracle);
+        crate::chart::write_text(&outcome.oracle_csv, &outcome.oracle_csv_text())?;
+        crate::chart::write_text(&outcome.summary, &outcome.summary_text(&[]))?;
+        return Ok(outcome);
+    }
     let resolution = job.scene.water.resolution;
     // The static objects are the first ids (object index + 1); characters follow and move.
     let static_objects = job.objects.len() as u32;
@@ -112,8 +142,11 @@ pub fn run_stability(
         resolution,
     };
     let mut rows = Vec::new();
+    let mut oracle = Vec::new();
     let mut previous: Option<(RenderedFrame, Vec<RenderedFrame>)> = None;
     for frame in options.frames.frames() {
+        bar.set_message(format!("frame {frame}: oracle"));
+        oracle.push(oracle_share(measurer.job(), frame, options.oracle_samples)?);
         bar.set_message(format!("frame {frame}: reference"));
         let reference = measurer.render_once(reference_configuration, frame)?;
         bar.inc(1);
@@ -162,16 +195,7 @@ pub fn run_stability(
     }
     bar.finish_and_clear();
     drop(measurer);
-    let outcome = StabilityOutcome {
-        scene,
-        size: (options.width, options.height),
-        adapter,
-        rows,
-        csv: options.out_dir.join(CSV_FILE_NAME),
-        summary: options.out_dir.join(SUMMARY_FILE_NAME),
-        svg: options.out_dir.join(SVG_FILE_NAME),
-        png: options.out_dir.join(PNG_FILE_NAME),
-    };
+    let outcome = StabilityOutcome::new(scene, options, adapter, rows, oracle);
     write_outputs(&outcome, &options.methods)?;
     Ok(outcome)
 }
@@ -209,6 +233,8 @@ pub fn csv_header() -> String {
             "popping_triangles",
             "convergence_vertices",
             "under_water_vertices",
+            "oracle_multi_image_fraction",
+            "oracle_sampled_vertices",
         ]
         .map(String::from),
     );
@@ -224,6 +250,29 @@ fn optional(value: Option<f64>) -> String {
 }
 
 impl StabilityOutcome {
+    /// What was measured, with the output files' paths in `options.out_dir`.
+    fn new(
+        scene: String,
+        options: &StabilityOptions,
+        adapter: String,
+        rows: Vec<FrameFigures>,
+        oracle: Vec<OracleShare>,
+    ) -> Self {
+        let path = |name: &str| options.out_dir.join(name);
+        StabilityOutcome {
+            scene,
+            size: (options.width, options.height),
+            adapter,
+            rows,
+            oracle,
+            oracle_csv: path(ORACLE_CSV_FILE_NAME),
+            csv: path(CSV_FILE_NAME),
+            summary: path(SUMMARY_FILE_NAME),
+            svg: path(SVG_FILE_NAME),
+            png: path(PNG_FILE_NAME),
+        }
+    }
+
     /// `stability.csv`: one row per frame and method.
     pub fn csv_text(&self) -> String {
         let mut text = csv_header();
@@ -260,16 +309,81 @@ impl StabilityOutcome {
                 row.counts.vertices.convergence.to_string(),
                 row.counts.vertices.under_water.to_string(),
             ]);
+            let share = self.oracle.iter().find(|o| o.frame == row.frame);
+            fields.extend([
+                optional(share.map(OracleShare::fraction)),
+                share.map(|o| o.sampled.to_string()).unwrap_or_default(),
+            ]);
             text.push_str(&fields.join(","));
             text.push('\n');
         }
         text
     }
 
+    /// `stability_oracle.csv`: one row per frame, the oracle's multi-image share with its 95 %
+    /// interval and what it measured.
+    pub fn oracle_csv_text(&self) -> String {
+        let mut text = String::from(ORACLE_CSV_HEADER);
+        text.push('\n');
+        for o in &self.oracle {
+            let (low, high) = o.interval95();
+            let _ = writeln!(
+                text,
+                "{},{},{},{},{},{},{},{},{},{}",
+                o.frame,
+                o.under_water_vertices,
+                o.sampled,
+                o.certain,
+                o.multi_image,
+                o.uncertain,
+                number(o.fraction()),
+                number(low),
+                number(high),
+                number(o.seconds)
+            );
+        }
+        text
+    }
+
+    /// The summary's oracle part: the frame with the lowest multi-image share (a hard scene must
+    /// stay hard in each frame), with its interval, and the mean.
+    fn oracle_summary(&self, text: &mut String) {
+        let Some(lowest) = self
+            .oracle
+            .iter()
+            .min_by(|a, b| a.fraction().total_cmp(&b.fraction()).then(a.frame.cmp(&b.frame)))
+        else {
+            return;
+        };
+        let mean =
+            self.oracle.iter().map(OracleShare::fraction).sum::<f64>() / self.oracle.len() as f64;
+        let (low, high) = lowest.interval95();
+        let sampled = if lowest.sampled >= lowest.under_water_vertices {
+            "every under-water vertex".to_string()
+        } else {
+            format!(
+                "a systematic sample of {} of {} under-water vertices per frame, 95 % Wilson interval {:.2}-{:.2} %",
+                lowest.sampled,
+                lowest.under_water_vertices,
+                100.0 * low,
+                100.0 * high
+            )
+        };
+        let _ = writeln!(
+            text,
+            "\nunder-water vertices with two or more images by the oracle: lowest {:.2} % (frame {}), mean {:.2} %\n  ({sampled}; {} of them unsettled, on folds, left out)",
+            100.0 * lowest.fraction(),
+            lowest.frame,
+            100.0 * mean,
+            lowest.uncertain
+        );
+    }
+
     /// The summary: per method, each headline figure's worst frame.
     pub fn summary_text(&self, methods: &[Method]) -> String {
         let mut text = String::new();
-        let frames: Vec<u32> = self.rows.iter().map(|r| r.frame).collect();
+        let mut frames: Vec<u32> = self.rows.iter().map(|r| r.frame).collect();
+        frames.extend(self.oracle.iter().map(|o| o.frame));
         let _ = writeln!(
             text,
             "snell stability: {} frames {}-{} at {}x{} on {}, each method against the ray-traced reference",
@@ -284,6 +398,7 @@ impl StabilityOutcome {
             "position error both ways (reference -> method and method -> reference pooled), px;\n\
              temporal: |dx_method - dx_reference| per tracked point of a static object, px\n",
         );
+        self.oracle_summary(&mut text);
         for &method in methods {
             let rows: Vec<&FrameFigures> =
                 self.rows.iter().filter(|r| r.method == method).collect();
@@ -353,6 +468,9 @@ impl StabilityOutcome {
     }
 }
 
+/// The header of `stability_oracle.csv`.
+pub const ORACLE_CSV_HEADER: &str = "frame,under_water_vertices,sampled,certain,multi_image,uncertain,multi_image_fraction,fraction_low95,fraction_high95,seconds";
+
 /// One figure of a row for the summary (`None` where the row has none).
 type Figure = fn(&FrameFigures) -> Option<f64>;
 
@@ -364,6 +482,7 @@ pub fn headline(row: &FrameFigures) -> PositionError {
 /// Writes the CSV, the summary and the chart of `outcome`, each atomically.
 pub fn write_outputs(outcome: &StabilityOutcome, methods: &[Method]) -> Result<(), SnellError> {
     crate::chart::write_text(&outcome.csv, &outcome.csv_text())?;
+    crate::chart::write_text(&outcome.oracle_csv, &outcome.oracle_csv_text())?;
     crate::chart::write_text(&outcome.summary, &outcome.summary_text(methods))?;
     let input = plot::TimeChart::of(outcome, methods);
     let drawing_error = |path: &Path, cause: String| {
@@ -402,6 +521,6 @@ mod tests {
     #[test]
     fn the_header_has_one_column_per_field() {
         let columns = csv_header().split(',').count();
-        assert_eq!(columns, 2 + 3 * 3 * 5 + 11);
+        assert_eq!(columns, 2 + 3 * 3 * 5 + 11 + 2);
     }
 }
