@@ -72,6 +72,13 @@ pub(super) fn layer_named(name: &str) -> Option<Layer> {
 
 /// Every channel of `layer` over the whole frame (empty when the frame lacks the layer).
 fn layer_channels(frame: &CachedFrame, layer: Layer) -> Vec<(String, Vec<f32>)> {
+    if let Some(file) = &frame.file_channels {
+        return file
+            .iter()
+            .filter(|(name, _)| in_layer(layer, name))
+            .cloned()
+            .collect();
+    }
     let rendered = &frame.rendered;
     crate::output::exr::channel_values(
         rendered,
@@ -256,6 +263,10 @@ pub(super) fn difference_image(a: &CachedFrame, b: &CachedFrame, layer: Layer) -
 
 /// Every channel's value at pixel (`x`, `y`) of `frame`, in the order the file holds them.
 pub(super) fn pixel_channels(frame: &CachedFrame, x: u32, y: u32) -> Vec<(String, f32)> {
+    if let Some(file) = &frame.file_channels {
+        let index = y as usize * frame.rendered.width as usize + x as usize;
+        return file.iter().map(|(name, values)| (name.clone(), values[index])).collect();
+    }
     crate::output::exr::channel_values(
         &frame.rendered,
         &frame.object_names,

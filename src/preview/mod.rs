@@ -137,6 +137,10 @@ struct CachedFrame {
     object_names: Arc<Vec<String>>,
     /// How the frame's channels are stored (a file's own choice; the defaults for a render).
     write: crate::output::exr::WriteOptions,
+    /// A frame read from a file: the file's own channels, as it stores them (derived layers such
+    /// as `Refraction` were computed from the float32 beauty before a `--half` file rounded it,
+    /// so they cannot be derived again from what the file holds).
+    file_channels: Option<Vec<(String, Vec<f32>)>>,
 }
 
 /// What the page shows about the loaded scene.
@@ -389,7 +393,9 @@ impl PreviewServer {
             folders.push(source::scan_folder(dir, &taken)?);
         }
         let (width, height) = folders.first().map_or((options.width, options.height), |f| f.size);
-        let frame_bytes = width as usize * height as usize * 40;
+        // A frame read from a file keeps the file's channels too (about 30 floats a pixel).
+        let bytes_per_pixel = if folders.is_empty() { 40 } else { 160 };
+        let frame_bytes = width as usize * height as usize * bytes_per_pixel;
         // About 1 GiB of linear frames (8 MiB each at 640x360: 128 frames), at least 8.
         let frame_capacity = ((1usize << 30) / frame_bytes.max(1)).clamp(8, 512);
         let shared = Arc::new(Shared {

@@ -320,6 +320,7 @@ impl Worker<'_> {
             stage_secs,
             object_names: Arc::new(job.object_names()),
             write: crate::output::exr::WriteOptions::default(),
+            file_channels: None,
         })
     }
 
@@ -369,6 +370,14 @@ fn decode(shared: &Shared, index: u8, frame: u32) -> Result<CachedFrame, SnellEr
     };
     let started = std::time::Instant::now();
     let (rendered, meta) = crate::output::exr::read_frame_exr(path).map_err(SnellError::Output)?;
+    let file = crate::output::exr::read_channels(path).map_err(SnellError::Output)?;
+    // In the file's order (the reader sorts by name): the order the writer gives them.
+    let order: Vec<String> = crate::output::exr::channel_values(&rendered, &meta.object_names, &meta.write, 0..0, |_| true)
+        .into_iter()
+        .map(|(name, _)| name)
+        .collect();
+    let mut channels: Vec<(String, Vec<f32>)> = file.channels.into_iter().collect();
+    channels.sort_by_key(|(name, _)| order.iter().position(|n| n == name).unwrap_or(usize::MAX));
     let mut stage_secs = std::collections::BTreeMap::new();
     stage_secs.insert("read_exr".to_string(), started.elapsed().as_secs_f64());
     Ok(CachedFrame {
@@ -377,5 +386,6 @@ fn decode(shared: &Shared, index: u8, frame: u32) -> Result<CachedFrame, SnellEr
         stage_secs,
         object_names: Arc::new(meta.object_names),
         write: meta.write,
+        file_channels: Some(channels),
     })
 }
