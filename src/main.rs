@@ -140,17 +140,35 @@ enum Command {
         #[command(flatten)]
         exr: snell::output::exr::cli::ExrArgs,
     },
-    /// Scrub a scene's timeline in the browser: a local web page with the frame, a timeline
-    /// slider, play/pause, exposure, method, flag overlays and a strip of per-frame flag counts.
+    /// Scrub a scene's timeline, or a folder of rendered EXRs, in the browser: a local web page
+    /// with the frame, a timeline slider, play/pause, J/K/L shuttle, a loop range, a frame number
+    /// to type, exposure, flag overlays, zoom and pan (wheel, drag, fit, 1:1), any layer of the
+    /// channel map as an image, a pixel inspector (every channel's value under the cursor, the
+    /// object's name, the flags, the position error against the ray-traced reference), an A/B
+    /// compare of two methods or folders (A, B, wipe, difference), and a strip of per-frame flag
+    /// counts.
     ///
     /// Serves on 127.0.0.1 only. Frames render on demand at the preview size and are cached;
     /// neighbours are prefetched. Edit the scene file (or any file it uses) and the page reloads
     /// it; a scene error is shown on the page, and the last version that loaded stays
     /// scrubbable until the error is fixed. Ripple simulations use the checkpoints of
     /// `snell render` (in output/<scene>/ unless --out says otherwise). Stop with Ctrl-C.
+    ///
+    /// Examples:
+    ///   snell preview scenes/pool.toml
+    ///   snell preview --frames-dir output/pool
+    ///   snell preview --frames-dir renders/equal-t --frames-dir renders/raytrace   (A/B, and the
+    ///     inspector's position error against the raytrace folder)
     Preview {
-        /// The scene file (TOML).
-        scene: PathBuf,
+        /// The scene file (TOML). Not with --frames-dir.
+        #[arg(required_unless_present = "frames_dir", conflicts_with = "frames_dir")]
+        scene: Option<PathBuf>,
+        /// Play back a folder of rendered EXR frames (files with the frame number before .exr, such
+        /// as pool.0001.exr) instead of rendering a scene; frames are decoded ahead of the
+        /// playhead. Give it again for more folders: each is a source to choose as A or B (named by
+        /// its folder), and one rendered with `--method raytrace` is the inspector's reference.
+        #[arg(long, value_name = "DIR", conflicts_with_all = ["size", "out"])]
+        frames_dir: Vec<PathBuf>,
         /// TCP port on 127.0.0.1 (0 picks a free one).
         #[arg(long, default_value_t = 8080)]
         port: u16,
@@ -479,10 +497,14 @@ fn run(cli: Cli) -> u8 {
         ),
         Command::Preview {
             scene,
+            frames_dir,
             port,
             size,
             out,
-        } => preview(&scene, port, &size, out),
+        } => match scene {
+            Some(scene) => preview(&scene, port, &size, out),
+            None => preview_frames(frames_dir, port),
+        },
         Command::Info { scene } => info(&scene),
         Command::Bench {
             json,
@@ -713,15 +735,25 @@ fn preview(
     options.width = width;
     options.height = height;
     options.out_dir = out;
+    serve_preview(options, &scene_path.display().to_string())
+}
+
+/// `snell preview --frames-dir DIR...`: plays back rendered frames.
+fn preview_frames(dirs: Vec<PathBuf>, port: u16) -> Result<(), SnellError> {
+    let mut options = snell::preview::PreviewOptions::new(Path::new(""));
+    options.port = port;
+    let shown: Vec<String> = dirs.iter().map(|d| d.display().to_string()).collect();
+    options.frames_dirs = dirs;
+    serve_preview(options, &shown.join(", "))
+}
+
+/// Serves `options` until SIGINT or SIGTERM, printing the address first.
+fn serve_preview(options: snell::preview::PreviewOptions, what: &str) -> Result<(), SnellError> {
     let signals = snell::interrupt::catch_stop_signals()
         .map_err(|error| SnellError::Argument(format!("cannot handle Ctrl-C: {error}")))?;
     let server = snell::preview::PreviewServer::start(options)?;
     // The first line on stdout is the address (tests and scripts read it); flushed at once.
-    outln!(
-        "snell preview: {} on {}",
-        scene_path.display(),
-        server.url()
-    );
+    outln!("snell preview: {what} on {}", server.url());
     use std::io::Write;
     let _ = std::io::stdout().flush();
     errln!(

@@ -677,3 +677,170 @@ fn a_scene_that_is_not_a_regular_file_is_refused_at_start() {
         );
     }
 }
+
+/// The inspector's API: every channel at a pixel as the frame holds it, the object's name, its
+/// flags, and the position error against the ray-traced reference once that is rendered.
+#[test]
+fn pixels_layers_and_differences_are_served() {
+    let temp = tempfile::tempdir().unwrap();
+    let server = start(&scene("pool.toml"), temp.path());
+    let job = RenderJob::prepare(&scene("pool.toml")).unwrap();
+    let mut renderer = Renderer::new().unwrap();
+    job.upload_textures(&mut renderer).unwrap();
+    let (_, rendered) = job.render_frame(&mut renderer, 9, WIDTH, HEIGHT).unwrap();
+    let names = job.object_names();
+
+    // A pixel that sees an object through the water, near the centre.
+    let index = (0..rendered.pixel_count())
+        .filter(|&i| rendered.water_matte[i] > 0.5 && rendered.object[i] != 0)
+        .min_by_key(|&i| {
+            let (x, y) = ((i as u32 % WIDTH) as i64, (i as u32 / WIDTH) as i64);
+            (x - WIDTH as i64 / 2).abs() + (y - HEIGHT as i64 / 2).abs()
+        })
+        .expect("a pixel seen through water");
+    let (x, y) = (index as u32 % WIDTH, index as u32 / WIDTH);
+    let pixel = fetch(&server, &format!("/api/pixel/9?x={x}&y={y}")).json().unwrap();
+    let value = |name: &str| -> f32 {
+        let found = pixel["channels"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|pair| pair[0] == name)
+            .unwrap_or_else(|| panic!("no channel {name} in {pixel}"));
+        found[1].as_str().unwrap().parse().unwrap()
+    };
+    let beauty = rendered.beauty_rgba[index];
+    for (c, name) in ["R", "G", "B", "A"].into_iter().enumerate() {
+        assert_eq!(value(name).to_bits(), beauty[c].to_bits(), "{name}");
+    }
+    assert_eq!(value("Z").to_bits(), rendered.depth_m[index].to_bits());
+    for (c, name) in ["P.X", "P.Y", "P.Z"].into_iter().enumerate() {
+        assert_eq!(value(name).to_bits(), rendered.position[index][c].to_bits(), "{name}");
+    }
+    assert_eq!(value("IndexOB.X"), rendered.object[index] as f32);
+    assert_eq!(value("WaterMatte.X"), 1.0);
+    assert_eq!(pixel["object"]["name"], names[rendered.object[index] as usize - 1]);
+    assert_eq!(pixel["reference"]["status"], "not rendered");
+
+    // Once the reference frame is rendered, the error is the distance between the two P's.
+    assert_eq!(fetch(&server, "/api/frame/9.json?method=raytrace").status, 200);
+    let pixel = fetch(&server, &format!("/api/pixel/9?x={x}&y={y}")).json().unwrap();
+    assert_eq!(pixel["reference"]["status"], "rendered", "{pixel}");
+    let reference = fetch(&server, &format!("/api/pixel/9?method=raytrace&x={x}&y={y}")).json().unwrap();
+    assert_eq!(reference["reference"]["status"], "this is the reference");
+    let p = |pixel: &serde_json::Value, name: &str| -> f64 {
+        let pairs = pixel["channels"].as_array().unwrap();
+        let pair = pairs.iter().find(|pair| pair[0] == name).unwrap();
+        pair[1].as_str().unwrap().parse::<f32>().unwrap() as f64
+    };
+    let distance = ["P.X", "P.Y", "P.Z"]
+        .iter()
+        .map(|c| (p(&pixel, c) - p(&reference, c)).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    let error: f64 = pixel["reference"]["error_m"].as_str().unwrap().parse().unwrap();
+    assert!((error - distance).abs() <= 1e-6 * distance.max(1e-3), "{error} vs {distance}");
+
+    // Every layer of the map is an image of the frame's size, with a legend.
+    let scene_state = fetch(&server, "/api/scene").json().unwrap();
+    let layers: Vec<String> = scene_state["layers"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|l| l["name"].as_str().unwrap().to_string())
+        .collect();
+    assert_eq!(layers.len(), snell::output::exr::channels::Layer::ALL.len());
+    let mut distinct = std::collections::BTreeSet::new();
+    for layer in &layers {
+        let response = fetch(&server, &format!("/api/frame/9.png?layer={layer}"));
+        let image = png(&response);
+        assert_eq!(image.dimensions(), (WIDTH, HEIGHT), "{layer}");
+        assert!(!response.header("x-snell-legend").unwrap_or("").is_empty(), "{layer}");
+        distinct.insert(image.into_raw());
+    }
+    assert!(distinct.len() >= layers.len() - 5, "layers drawn alike: {} distinct of {}", distinct.len(), layers.len());
+    let same = png(&fetch(&server, "/api/frame/9.png?method=equal-t&against=equal-t"));
+    assert!(same.pixels().all(|p| p.0[..3] == [0, 0, 0]), "a frame against itself is black");
+
+    // Bad requests.
+    assert!(error_of(&server, &format!("/api/pixel/9?x={WIDTH}&y=0"), 400).contains("0 to 159"));
+    error_of(&server, "/api/pixel/9?x=1", 400);
+    error_of(&server, "/api/pixel/99?x=1&y=1", 404);
+    assert!(error_of(&server, "/api/frame/9.png?layer=Nope", 400).contains("IndexOB"));
+    assert!(error_of(&server, "/api/frame/9.png?against=nope", 400).contains("against"));
+    server.stop();
+
+    // The difference of two methods: black where they agree, and not all black. On tiny.toml:
+    // thesis-plane's refraction enumerates every image over every membrane facet, 53 s for one
+    // pool.toml frame on 2 cores (twice over in the preview, which refracts the frame before for
+    // popping too), so the request outlived the 120 s wait; a tiny.toml frame refracts in 0.05 s.
+    let tiny = start(&scene("tiny.toml"), &temp.path().join("tiny"));
+    let difference = png(&fetch(&tiny, "/api/frame/2.png?against=thesis-plane"));
+    assert!(difference.pixels().any(|p| p.0[0] > 0), "equal-t and thesis-plane differ somewhere");
+    let same = png(&fetch(&tiny, "/api/frame/2.png?method=thesis-plane&against=thesis-plane"));
+    assert!(same.pixels().all(|p| p.0[..3] == [0, 0, 0]), "a frame against itself is black");
+    tiny.stop();
+}
+
+/// `--frames-dir`: frames are the files' (tone-mapped beauty, every channel's value), each folder
+/// is a source, a frame a folder lacks is named, and an empty folder is refused at start.
+#[test]
+fn folders_of_rendered_frames_are_served() {
+    let temp = tempfile::tempdir().unwrap();
+    let renders = temp.path().join("renders");
+    let status = std::process::Command::new(env!("CARGO_BIN_EXE_snell"))
+        .arg("render")
+        .arg(scene("pool.toml"))
+        .args(["--frames", "2-4", "--size", "160x90", "--half", "--out"])
+        .arg(&renders)
+        .stdout(std::process::Stdio::null())
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let fewer = temp.path().join("fewer");
+    std::fs::create_dir(&fewer).unwrap();
+    std::fs::copy(renders.join("pool.0003.exr"), fewer.join("pool.0003.exr")).unwrap();
+    let mut options = PreviewOptions::new(Path::new(""));
+    options.port = 0;
+    options.frames_dirs = vec![renders.clone(), fewer.clone()];
+    let server = PreviewServer::start(options).expect("the preview starts");
+    let state = fetch(&server, "/api/scene").json().unwrap();
+    assert_eq!(state["mode"], "frames");
+    assert_eq!(state["scene"]["first_frame"], 2);
+    assert_eq!(state["scene"]["last_frame"], 4);
+    assert_eq!(state["size"], serde_json::json!([160, 90]));
+    let methods: Vec<&str> = state["methods"].as_array().unwrap().iter().map(|m| m["name"].as_str().unwrap()).collect();
+    assert_eq!(methods, ["renders", "fewer"]);
+    assert!(state["reference"].is_null());
+
+    let exr = renders.join("pool.0003.exr");
+    let (frame, _) = snell::output::exr::read_frame_exr(&exr).unwrap();
+    assert!(png(&fetch(&server, "/api/frame/3.png")) == tonemap_srgb8(&frame, 0.0));
+    let file = snell::output::exr::read_channels(&exr).unwrap();
+    let (x, y) = (80, 50);
+    let pixel = fetch(&server, &format!("/api/pixel/3?x={x}&y={y}")).json().unwrap();
+    let channels = pixel["channels"].as_array().unwrap();
+    assert_eq!(channels.len(), file.channels.len(), "{pixel}");
+    for pair in channels {
+        let name = pair[0].as_str().unwrap();
+        let served: f32 = pair[1].as_str().unwrap().parse().unwrap();
+        let stored = file.get(name).unwrap_or_else(|| panic!("{name} is not in the file"))[y * 160 + x];
+        assert_eq!(served.to_bits(), stored.to_bits(), "{name}");
+    }
+    assert_eq!(file.types["R"], "f16", "--half: the values checked are the half beauty's");
+    assert!(error_of(&server, "/api/frame/2.png?method=fewer", 422).contains("holds no frame 2"));
+    let strip = fetch(&server, "/api/strip?method=fewer").json().unwrap();
+    assert_eq!(strip["available"], false);
+    server.stop();
+
+    let empty = temp.path().join("empty");
+    std::fs::create_dir(&empty).unwrap();
+    let output = std::process::Command::new(env!("CARGO_BIN_EXE_snell"))
+        .args(["preview", "--port", "0", "--frames-dir"])
+        .arg(&empty)
+        .output()
+        .unwrap();
+    assert_eq!(output.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(stderr.contains("--frames-dir") && stderr.contains("no EXR frames"), "{stderr}");
+}

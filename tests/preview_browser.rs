@@ -196,6 +196,7 @@ fn max_channel_difference(a: &image::RgbaImage, b: &image::RgbaImage) -> u8 {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn preview_page_in_headless_chromium() {
+    let _one = one_browser();
     let temp = tempfile::tempdir().unwrap();
     let scene: PathBuf = temp.path().join("pool.toml");
     let original =
@@ -350,4 +351,437 @@ fn save(path: &Path, contents: impl AsRef<[u8]>) {
     let temporary = path.with_extension("toml.saving");
     std::fs::write(&temporary, contents).unwrap();
     std::fs::rename(&temporary, path).unwrap();
+}
+
+/// The browser tests share two cores: one at a time.
+static ONE_BROWSER: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+fn one_browser() -> std::sync::MutexGuard<'static, ()> {
+    ONE_BROWSER.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
+}
+
+/// `snell render` of `frames` at `size` with `extra` arguments into `out` (EXR, and PNG).
+fn render_exrs(scene: &Path, frames: &str, size: &str, extra: &[&str], out: &Path) {
+    let status = snell()
+        .arg("render")
+        .arg(scene)
+        .args(["--frames", frames, "--size", size, "--png", "--out"])
+        .arg(out)
+        .args(extra)
+        .stdout(Stdio::null())
+        .status()
+        .expect("snell render runs");
+    assert!(status.success(), "snell render {frames} {extra:?}");
+}
+
+/// Presses and releases `key` as a keyboard would (real key events, through WebDriver).
+async fn press(client: &Client, key: char) {
+    use fantoccini::actions::{KeyAction, KeyActions};
+    let keys = KeyActions::new("keyboard".into())
+        .then(KeyAction::Down { value: key })
+        .then(KeyAction::Up { value: key });
+    client.perform_actions(keys).await.expect("the key press runs");
+}
+
+/// Moves the mouse over the centre of image pixel (`x`, `y`) of `#frame`, placed from the image
+/// element's own box on the screen (not from the page's zoom state), and waits until the
+/// inspector shows that pixel. Returns the inspector's A column: key to text.
+async fn hover_pixel(client: &Client, x: u32, y: u32, frame: u32) -> std::collections::BTreeMap<String, String> {
+    let rect = client
+        .execute(
+            "const img = document.getElementById('frame'); const r = img.getBoundingClientRect(); \
+             return [r.left, r.top, r.width / img.naturalWidth, r.height / img.naturalHeight];",
+            vec![],
+        )
+        .await
+        .unwrap();
+    let number = |i: usize| rect[i].as_f64().unwrap();
+    let (left, top, sx, sy) = (number(0), number(1), number(2), number(3));
+    assert!(sx >= 3.0, "zoom in first, so the pointer lands inside one pixel (scale {sx})");
+    let at_x = left + (x as f64 + 0.5) * sx;
+    let at_y = top + (y as f64 + 0.5) * sy;
+    let hover = MouseActions::new("mouse".into()).then(PointerAction::MoveTo {
+        duration: None,
+        x: at_x.round(),
+        y: at_y.round(),
+    });
+    client.perform_actions(hover).await.expect("the mouse moves");
+    let script = format!(
+        "const box = document.getElementById('inspector'); \
+         if (box.dataset.x !== '{x}' || box.dataset.y !== '{y}' || box.dataset.frame !== '{frame}') return null; \
+         const out = {{}}; for (const td of box.querySelectorAll('td[data-side=a]')) out[td.dataset.key] = td.textContent; \
+         return out;"
+    );
+    let shown = wait_for(client, "the inspector at the hovered pixel", &script, |v| !v.is_null()).await;
+    shown
+        .as_object()
+        .unwrap()
+        .iter()
+        .map(|(k, v)| (k.clone(), v.as_str().unwrap().to_string()))
+        .collect()
+}
+
+/// Checks that the inspector's values are the EXR file's at (`x`, `y`): every channel of the file
+/// (read here with the project's own EXR reader, not through the preview), bit for bit, no channel
+/// the file lacks, and the object's name and flags as the file's header and flag channels say.
+fn assert_inspector_equals_exr(shown: &std::collections::BTreeMap<String, String>, exr: &Path, x: u32, y: u32) {
+    let file = snell::output::exr::read_channels(exr).expect("the EXR reads");
+    let (_, meta) = snell::output::exr::read_frame_exr(exr).expect("the EXR reads");
+    let index = y as usize * file.width + x as usize;
+    let shown_channels: Vec<&String> = shown.keys().filter(|k| k.starts_with("channel:")).collect();
+    assert_eq!(
+        shown_channels.len(),
+        file.channels.len(),
+        "the inspector shows {shown_channels:?}, the file holds {:?}",
+        file.channels.keys().collect::<Vec<_>>()
+    );
+    for (name, values) in &file.channels {
+        let text = shown
+            .get(&format!("channel:{name}"))
+            .unwrap_or_else(|| panic!("the inspector lacks channel {name}"));
+        let value: f32 = text.parse().unwrap_or_else(|_| panic!("{name}: {text:?} is not a number"));
+        let expected = values[index];
+        assert!(
+            value.to_bits() == expected.to_bits() || (value.is_nan() && expected.is_nan()),
+            "{name} at ({x}, {y}): the inspector shows {text}, the file holds {expected:?}"
+        );
+    }
+    let object = file.get("IndexOB.X").expect("an IndexOB layer")[index] as usize;
+    assert!(object > 0, "choose a pixel that shows an object");
+    assert_eq!(shown["object"], meta.object_names[object - 1], "object name");
+    let flags: Vec<&str> = [
+        ("FlagConvergence.X", "convergence"),
+        ("FlagBoundary.X", "boundary"),
+        ("FlagPopping.X", "popping"),
+        ("FlagExtrapolated.X", "extrapolated"),
+    ]
+    .iter()
+    .filter(|(channel, _)| file.get(channel).unwrap()[index] > 0.5)
+    .map(|(_, name)| *name)
+    .collect();
+    let expected_flags = if flags.is_empty() { "none".to_string() } else { flags.join(", ") };
+    assert_eq!(shown["flags"], expected_flags, "flags");
+}
+
+/// A pixel near the image's centre that shows an object through the water (so Z, P, the object
+/// and the split differ from sky values), from the file.
+fn pixel_through_water(exr: &Path) -> (u32, u32) {
+    let file = snell::output::exr::read_channels(exr).expect("the EXR reads");
+    let (w, h) = (file.width as i64, file.height as i64);
+    let matte = file.get("WaterMatte.X").unwrap();
+    let object = file.get("IndexOB.X").unwrap();
+    let mut best = None;
+    for y in 0..h {
+        for x in 0..w {
+            let i = (y * w + x) as usize;
+            if matte[i] > 0.5 && object[i] > 0.0 {
+                let distance = (x - w / 2).abs().max((y - h / 2).abs());
+                if best.is_none_or(|(d, _, _)| distance < d) {
+                    best = Some((distance, x as u32, y as u32));
+                }
+            }
+        }
+    }
+    let (_, x, y) = best.expect("some pixel shows an object through water");
+    (x, y)
+}
+
+/// The page's image `id` as a browser decoded it (its own pixels, whatever the zoom).
+async fn image_pixels(client: &Client, id: &str) -> image::RgbaImage {
+    let script = format!(
+        "const img = document.getElementById('{id}'); \
+         const canvas = document.createElement('canvas'); \
+         canvas.width = img.naturalWidth; canvas.height = img.naturalHeight; \
+         canvas.getContext('2d').drawImage(img, 0, 0); \
+         return canvas.toDataURL('image/png');"
+    );
+    let data_url = client.execute(&script, vec![]).await.expect("canvas readback");
+    let bytes = base64::engine::general_purpose::STANDARD
+        .decode(data_url.as_str().unwrap().strip_prefix("data:image/png;base64,").unwrap())
+        .unwrap();
+    image::load_from_memory(&bytes).unwrap().to_rgba8()
+}
+
+/// Which of the page's images is on top at the viewport's centre (what the user sees there).
+const ON_TOP: &str = "const box = document.getElementById('viewport').getBoundingClientRect(); \
+    const at = document.elementFromPoint(box.left + box.width * 0.75, box.top + box.height / 2); \
+    return at ? at.id : null;";
+
+/// Render mode: A/B compare of two methods (both frames cached: a switch fetches nothing and
+/// takes under 50 ms from the key press to the frame drawn after it), wipe and difference, zoom
+/// (1:1, fit, zoom in), a layer as an image, and the inspector against `snell render`'s EXR.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn compare_zoom_layers_and_inspector_in_headless_chromium() {
+    let _one = one_browser();
+    let temp = tempfile::tempdir().unwrap();
+    // tiny.toml, not pool.toml: B is thesis-plane, whose refraction enumerates every image over
+    // every membrane facet; a pool.toml frame costs it 53 s on 2 cores (twice over in the preview,
+    // which also refracts the frame before for popping), so A, B and the difference did not arrive
+    // within the 120 s wait. A tiny.toml frame refracts in 0.05 s and the two methods still differ.
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/tiny.toml");
+    let frame = 2;
+    let exr_dir = temp.path().join("exr");
+    render_exrs(&scene, &frame.to_string(), SIZE, &[], &exr_dir);
+    let exr = exr_dir.join(format!("tiny.{frame:04}.exr"));
+    let (_preview, url) = start_preview(&scene, &temp.path().join("out"));
+    let (_driver, driver_url) = start_chromedriver();
+    let client = connect(&driver_url).await;
+    client
+        .goto(&format!("{url}#frame={frame}&b=thesis-plane&compare=a"))
+        .await
+        .expect("the page loads");
+
+    // A, B and their difference arrive for the frame.
+    wait_for(
+        &client,
+        "A, B and the difference",
+        &format!(
+            "const ok = (id) => {{ const img = document.getElementById(id); \
+               return img.dataset.frame === '{frame}' && img.complete && img.naturalWidth > 0; }}; \
+             return ok('frame') && ok('frame-b') && ok('frame-diff') ? true : null;"
+        ),
+        |v| v == true,
+    )
+    .await;
+    let a_pixels = image_pixels(&client, "frame").await;
+    let b_pixels = image_pixels(&client, "frame-b").await;
+    assert!(
+        max_channel_difference(&a_pixels, &b_pixels) > 0,
+        "equal-t and thesis-plane frames must differ, or the switch below shows nothing"
+    );
+    assert_eq!(client.execute(ON_TOP, vec![]).await.unwrap(), "frame");
+
+    // Switching A/B fetches nothing and is drawn within 50 ms of the key press.
+    let fetches = "return performance.getEntriesByType('resource').filter(e => e.name.includes('/api/frame/')).length;";
+    let before = client.execute(fetches, vec![]).await.unwrap();
+    let mut times = Vec::new();
+    for (index, key) in "babababababababababa".chars().enumerate() {
+        press(&client, key).await;
+        let time = wait_for(
+            &client,
+            "the switch to be drawn",
+            &format!("const t = window.view.switchTimes; return t.length > {index} ? t[{index}] : null;"),
+            |v| !v.is_null(),
+        )
+        .await;
+        times.push(time.as_f64().unwrap());
+        let expected = if key == 'b' { "frame-b" } else { "frame" };
+        assert_eq!(client.execute(ON_TOP, vec![]).await.unwrap(), expected, "after pressing {key}");
+    }
+    let after = client.execute(fetches, vec![]).await.unwrap();
+    assert_eq!(before, after, "an A/B switch must fetch nothing");
+    let slowest = times.iter().copied().fold(0.0, f64::max);
+    eprintln!("A/B switches, key press to the next frame drawn (ms): {times:?}");
+    assert!(
+        slowest < 50.0,
+        "every A/B switch must be drawn within 50 ms of its key press; took {times:?} ms"
+    );
+    // What B shows is the server's thesis-plane frame.
+    let server_b = snell::preview::client::get(
+        &url,
+        &format!("/api/frame/{frame}.png?method=thesis-plane&exposure=0&flags=&layer=beauty"),
+    )
+    .unwrap();
+    let server_b = image::load_from_memory(&server_b.body).unwrap().to_rgba8();
+    assert_eq!(max_channel_difference(&b_pixels, &server_b), 0, "B is the thesis-plane frame");
+
+    // Wipe: A left of the line, B right of it; difference: the |A - B| image.
+    press(&client, 'w').await;
+    let sides = "const box = document.getElementById('viewport').getBoundingClientRect(); \
+        const img = document.getElementById('frame').getBoundingClientRect(); \
+        const line = document.getElementById('wipe-line').getBoundingClientRect().left; \
+        const y = Math.max(img.top, box.top) + 20; \
+        const left = document.elementFromPoint(line - 15, y), right = document.elementFromPoint(line + 15, y); \
+        return [left && left.id, right && right.id];";
+    let wiped = client.execute(sides, vec![]).await.unwrap();
+    assert_eq!(wiped, json!(["frame", "frame-b"]), "wipe");
+    press(&client, 'd').await;
+    assert_eq!(client.execute(ON_TOP, vec![]).await.unwrap(), "frame-diff");
+    let legend = client.find(Locator::Css("#legend")).await.unwrap().text().await.unwrap();
+    assert!(legend.contains("|A - B|") && legend.contains("pixels differ"), "legend {legend:?}");
+    press(&client, 'a').await;
+
+    // Zoom: 1:1 shows one image pixel per CSS pixel, fit fills the viewport, + zooms in.
+    let image_box = "const r = document.getElementById('frame').getBoundingClientRect(); \
+        const v = document.getElementById('viewport').getBoundingClientRect(); return [r.width, r.height, v.width, v.height];";
+    press(&client, '1').await;
+    let one = client.execute(image_box, vec![]).await.unwrap();
+    assert_eq!((one[0].as_f64().unwrap(), one[1].as_f64().unwrap()), (640.0, 360.0), "1:1");
+    press(&client, 'f').await;
+    let fitted = client.execute(image_box, vec![]).await.unwrap();
+    let f = |i: usize| fitted[i].as_f64().unwrap();
+    assert!(
+        ((f(0) - f(2)).abs() < 1.0 && f(1) <= f(3) + 1.0) || ((f(1) - f(3)).abs() < 1.0 && f(0) <= f(2) + 1.0),
+        "fit: the image {}x{} fills the viewport {}x{} on one side",
+        f(0), f(1), f(2), f(3)
+    );
+    for _ in 0..8 {
+        press(&client, '+').await;
+    }
+    let zoomed = client.execute(image_box, vec![]).await.unwrap();
+    assert!(zoomed[0].as_f64().unwrap() > 4.0 * 640.0, "zoomed in: {zoomed}");
+
+    // The inspector shows the EXR's values at the pixel under the cursor.
+    let (x, y) = pixel_through_water(&exr);
+    let shown = hover_pixel(&client, x, y, frame).await;
+    assert_inspector_equals_exr(&shown, &exr, x, y);
+
+    // A layer as an image: Z, drawn by depth, changes what A shows.
+    let select = client.find(Locator::Css("#layer")).await.unwrap();
+    select.select_by_value("Z").await.unwrap();
+    wait_for(
+        &client,
+        "the Z layer",
+        "const img = document.getElementById('frame'); return img.dataset.url && img.dataset.url.includes('layer=Z') && img.complete ? true : null;",
+        |v| v == true,
+    )
+    .await;
+    let depth_pixels = image_pixels(&client, "frame").await;
+    assert!(max_channel_difference(&depth_pixels, &a_pixels) > 32, "the Z view differs from the beauty");
+    let legend = client.find(Locator::Css("#legend")).await.unwrap().text().await.unwrap();
+    assert!(legend.starts_with("Z: ") && legend.contains(" m "), "legend {legend:?}");
+    client.close().await.unwrap();
+}
+
+/// `snell preview --frames-dir`: a folder of rendered EXRs scrubbed (typing a frame number),
+/// decoded ahead of the playhead, played in a loop range with J/K/L, inspected (the file's values
+/// and the position error against a folder of the ray-traced reference).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_folder_of_exrs_plays_back_and_inspects_in_headless_chromium() {
+    let _one = one_browser();
+    let temp = tempfile::tempdir().unwrap();
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/pool.toml");
+    let size = "320x180";
+    let renders = temp.path().join("equal-t");
+    let reference = temp.path().join("raytrace");
+    render_exrs(&scene, "1-8", size, &[], &renders);
+    render_exrs(&scene, "4", size, &["--method", "raytrace"], &reference);
+    let mut child = snell()
+        .arg("preview")
+        .arg("--frames-dir")
+        .arg(&renders)
+        .arg("--frames-dir")
+        .arg(&reference)
+        .args(["--port", "0"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .expect("snell preview starts");
+    let stdout = child.stdout.take().unwrap();
+    let _preview = Running(child);
+    let mut line = String::new();
+    BufReader::new(stdout).read_line(&mut line).unwrap();
+    let url = line.trim().rsplit_once(" on ").unwrap().1.to_string();
+    let (_driver, driver_url) = start_chromedriver();
+    let client = connect(&driver_url).await;
+    client.goto(&url).await.expect("the page loads");
+    let shown = wait_for(&client, "the first frame", SHOWN_FRAME, |v| !v.is_null()).await;
+    assert_eq!(shown["frame"], "1");
+    let sources = client
+        .execute("return [...document.getElementById('method').options].map(o => o.value);", vec![])
+        .await
+        .unwrap();
+    assert_eq!(sources, json!(["equal-t", "raytrace"]), "each folder is a source");
+
+    // Type a frame number: the page shows that file's frame (the PNG `snell render` wrote with it).
+    let input = client.find(Locator::Css("#frame-input")).await.unwrap();
+    input.clear().await.unwrap();
+    input.send_keys("4\n").await.unwrap();
+    wait_for(&client, "frame 4", SHOWN_FRAME, |v| v["frame"] == "4").await;
+    let png = image::open(renders.join("pool.0004.png")).unwrap().to_rgba8();
+    assert_eq!(max_channel_difference(&shown_pixels(&client).await, &png), 0, "frame 4 is the file's");
+
+    // Decoded ahead of the playhead: frames 5 to 8 are in memory without being asked for.
+    let cached = |frame: u32| {
+        let response = snell::preview::client::get(&url, &format!("/api/frame/{frame}.json?method=equal-t")).unwrap();
+        assert_eq!(response.status, 200);
+        response.header("x-snell-cache").unwrap_or("").to_string()
+    };
+    let deadline = Instant::now() + Duration::from_secs(60);
+    loop {
+        let scene = snell::preview::client::get(&url, "/api/scene").unwrap().json().unwrap();
+        if scene["worker_busy"] == false {
+            break;
+        }
+        assert!(Instant::now() < deadline, "the decoder never went idle");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    for frame in 5..=8 {
+        assert_eq!(cached(frame), "frame", "frame {frame} should have been decoded ahead");
+    }
+
+    // The inspector: the file's values, and the error against the reference folder's P.
+    for _ in 0..9 {
+        press(&client, '+').await;
+    }
+    let exr = renders.join("pool.0004.exr");
+    let (x, y) = pixel_through_water(&exr);
+    let mut shown = hover_pixel(&client, x, y, 4).await;
+    assert_inspector_equals_exr(&shown, &exr, x, y);
+    let reference_exr = snell::output::exr::read_channels(&reference.join("pool.0004.exr")).unwrap();
+    let file = snell::output::exr::read_channels(&exr).unwrap();
+    let index = y as usize * file.width + x as usize;
+    let distance: f64 = ["P.X", "P.Y", "P.Z"]
+        .iter()
+        .map(|c| (file.get(c).unwrap()[index] as f64 - reference_exr.get(c).unwrap()[index] as f64).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    // The reference is read on the first hover; hover again until the error is shown.
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while !shown["error"].ends_with("mm") && !shown["error"].contains("mm (") {
+        assert!(Instant::now() < deadline, "no position error shown: {:?}", shown["error"]);
+        tokio::time::sleep(Duration::from_millis(200)).await;
+        let error = client
+            .execute("return document.getElementById('inspector').dataset.error;", vec![])
+            .await
+            .unwrap();
+        if error.as_str().is_some_and(|e| !e.is_empty()) {
+            let error: f64 = error.as_str().unwrap().parse().unwrap();
+            assert!(
+                (error - distance).abs() <= 1e-6 * distance.max(1e-3),
+                "the inspector's position error {error} m, the files' {distance} m"
+            );
+            shown.insert("error".into(), "mm".into());
+        }
+    }
+
+    // Loop frames 2-3 and shuttle with J/K/L: playback stays in the range and wraps.
+    for (id, value) in [("#loop-in", "2"), ("#loop-out", "3")] {
+        let field = client.find(Locator::Css(id)).await.unwrap();
+        field.clear().await.unwrap();
+        field.send_keys(value).await.unwrap();
+    }
+    client.find(Locator::Css("#loop")).await.unwrap().click().await.unwrap();
+    client.execute("document.activeElement.blur();", vec![]).await.unwrap();
+    let current = "return Number(document.getElementById('slider').value);";
+    press(&client, 'l').await;
+    let mut seen = std::collections::BTreeSet::new();
+    let started = Instant::now();
+    while started.elapsed() < Duration::from_millis(1500) {
+        seen.insert(client.execute(current, vec![]).await.unwrap().as_u64().unwrap());
+        tokio::time::sleep(Duration::from_millis(15)).await;
+    }
+    assert!(seen.contains(&2) && seen.contains(&3), "L plays through the loop range: saw {seen:?}");
+    assert!(seen.iter().all(|f| (2..=4).contains(f)), "only the loop range (and where it started, 4): saw {seen:?}");
+    press(&client, 'l').await;
+    let shuttle = client.find(Locator::Css("#shuttle")).await.unwrap().text().await.unwrap();
+    assert!(shuttle.contains('2'), "L again doubles the speed: {shuttle:?}");
+    press(&client, 'k').await;
+    let stopped = client.execute(current, vec![]).await.unwrap();
+    tokio::time::sleep(Duration::from_millis(400)).await;
+    assert_eq!(client.execute(current, vec![]).await.unwrap(), stopped, "K stops");
+    client.find(Locator::Css("#loop")).await.unwrap().click().await.unwrap();
+    client.execute("document.activeElement.blur();", vec![]).await.unwrap();
+    press(&client, 'j').await;
+    let start = stopped.as_u64().unwrap();
+    let mut backwards = false;
+    let started = Instant::now();
+    while started.elapsed() < Duration::from_millis(1500) && !backwards {
+        let now = client.execute(current, vec![]).await.unwrap().as_u64().unwrap();
+        backwards = now == start.wrapping_sub(1) || (start == 1 && now == 8);
+        tokio::time::sleep(Duration::from_millis(15)).await;
+    }
+    press(&client, 'k').await;
+    assert!(backwards, "J plays backwards from frame {start}");
+    client.close().await.unwrap();
 }

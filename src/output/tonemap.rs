@@ -68,6 +68,12 @@ fn to_u8(unit: f32) -> u8 {
     (unit.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
 }
 
+/// One linear colour as the tone-mapped images show it: times `exposure_scale`, [`aces_fitted`],
+/// sRGB-encoded bytes.
+pub fn display_srgb8(linear_rgb: [f32; 3], exposure_scale: f32) -> [u8; 3] {
+    aces_fitted(linear_rgb.map(|c| c * exposure_scale)).map(|c| to_u8(srgb_encode(c)))
+}
+
 /// Tone-maps the beauty of `frame`: multiplies by `2^exposure_stops`, applies [`aces_fitted`],
 /// encodes sRGB. Alpha is copied (clamped to [0, 1]) without a curve. NaN counts as black.
 pub fn tonemap_srgb8(frame: &RenderedFrame, exposure_stops: f32) -> RgbaImage {
@@ -75,8 +81,7 @@ pub fn tonemap_srgb8(frame: &RenderedFrame, exposure_stops: f32) -> RgbaImage {
     let pixel_count = frame.width as usize * frame.height as usize;
     let mut bytes = Vec::with_capacity(pixel_count * 4);
     for rgba in frame.beauty_rgba.iter().take(pixel_count) {
-        let display = aces_fitted([rgba[0], rgba[1], rgba[2]].map(|c| c * exposure_scale));
-        bytes.extend(display.map(|c| to_u8(srgb_encode(c))));
+        bytes.extend(display_srgb8([rgba[0], rgba[1], rgba[2]], exposure_scale));
         bytes.push(to_u8(if rgba[3].is_nan() { 0.0 } else { rgba[3] }));
     }
     // A short beauty buffer is a contract violation upstream; pad with transparent black rather

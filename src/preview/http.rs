@@ -9,9 +9,10 @@ use std::time::{Duration, Instant};
 use image::RgbaImage;
 use serde_json::json;
 
-use super::{server, worker, CachedFrame, FrameKey, ImageKey, Shared, State};
+use super::source::Source;
+use super::{layers, server, worker, CachedFrame, FrameKey, ImageKey, Shared, State};
 use crate::draw::flag_bits;
-use crate::frame::Method;
+use crate::output::exr::channels::Layer;
 
 /// The flags a page can overlay: name, bit, overlay colour (sRGB bytes).
 pub(super) const OVERLAYS: [(&str, u32, [u8; 3]); 4] = [
@@ -127,15 +128,16 @@ fn route(shared: &Shared, url: &str) -> Reply {
         },
         "/api/scene" => scene(shared),
         "/api/health" => health(shared),
-        "/api/strip" => match params.method() {
-            Ok(method) => strip(shared, method),
+        "/api/strip" => match params.source(shared, "method") {
+            Ok(source) => strip(shared, source),
             Err(reply) => reply,
         },
-        _ => match path.strip_prefix("/api/frame/") {
-            Some(rest) => frame(shared, rest, &params),
-            None => Reply::error(
+        _ => match (path.strip_prefix("/api/frame/"), path.strip_prefix("/api/pixel/")) {
+            (Some(rest), _) => frame(shared, rest, &params),
+            (_, Some(rest)) => pixel(shared, rest, &params),
+            _ => Reply::error(
                 404,
-                format!("no such page: {path}; the preview serves /, /api/scene, /api/health, /api/strip and /api/frame/<N>.png"),
+                format!("no such page: {path}; the preview serves /, /api/scene, /api/health, /api/strip, /api/frame/<N>.png, /api/frame/<N>.json and /api/pixel/<N>?x=&y="),
             ),
         },
     }
@@ -143,9 +145,21 @@ fn route(shared: &Shared, url: &str) -> Reply {
 
 fn scene(shared: &Shared) -> Reply {
     let state = shared.lock();
-    let methods: Vec<_> = Method::ALL
+    let methods: Vec<_> = shared
+        .sources()
+        .into_iter()
+        .map(|(_, name, description)| json!({ "name": name, "description": description }))
+        .collect();
+    let name_of = |source: Source| {
+        shared
+            .sources()
+            .into_iter()
+            .find(|(s, _, _)| *s == source)
+            .map(|(_, name, _)| name)
+    };
+    let layers: Vec<_> = Layer::ALL
         .iter()
-        .map(|m| json!({ "name": m.name(), "description": m.description() }))
+        .map(|&l| json!({ "name": l.name(), "description": layers::describe(l) }))
         .collect();
     Reply::json(
         200,
@@ -155,7 +169,10 @@ fn scene(shared: &Shared) -> Reply {
             "scene": state.scene,
             "size": [shared.width, shared.height],
             "methods": methods,
-            "default_method": Method::default().name(),
+            "default_method": name_of(shared.default_source()),
+            "mode": if shared.folders.is_empty() { "render" } else { "frames" },
+            "reference": shared.reference_source().and_then(name_of),
+            "layers": layers,
             "flags": OVERLAYS.iter().map(|(name, _, rgb)| json!({
                 "name": name,
                 "color": format!("#{:02x}{:02x}{:02x}", rgb[0], rgb[1], rgb[2]),
@@ -210,16 +227,25 @@ fn health(shared: &Shared) -> Reply {
     )
 }
 
-fn strip(shared: &Shared, method: Method) -> Reply {
+fn strip(shared: &Shared, source: Source) -> Reply {
     let mut state = shared.lock();
     let Some(scene) = state.scene.clone() else {
         return no_scene(&state);
     };
-    if !state.strips.contains_key(&method) {
-        worker::want_strip(&mut state, method);
+    let method_name = params_name(shared, source);
+    if source.method().is_none() {
+        // Frames read from files keep no vertex or triangle counts.
+        return Reply::json(
+            200,
+            json!({ "generation": state.generation, "method": method_name, "available": false,
+                    "done": true, "frames": [] }),
+        );
+    }
+    if !state.strips.contains_key(&source) {
+        worker::want_strip(&mut state, source);
         shared.wake.notify_all();
     }
-    let strip = &state.strips[&method];
+    let strip = &state.strips[&source];
     let frames: Vec<_> = strip
         .counts
         .iter()
@@ -237,7 +263,8 @@ fn strip(shared: &Shared, method: Method) -> Reply {
         200,
         json!({
             "generation": state.generation,
-            "method": method.name(),
+            "method": method_name,
+            "available": true,
             "done": strip.counts.iter().all(Option::is_some),
             "frames": frames,
         }),
@@ -254,6 +281,48 @@ fn no_scene(state: &State) -> Reply {
     )
 }
 
+/// The source's name, as requests and the page use it.
+fn params_name(shared: &Shared, source: Source) -> String {
+    shared
+        .sources()
+        .into_iter()
+        .find(|(s, _, _)| *s == source)
+        .map_or_else(|| "?".to_string(), |(_, name, _)| name)
+}
+
+/// A frame number from the path (`12` of `/api/frame/12.png`), or a 400 saying what one is.
+fn frame_number(number: &str) -> Result<u32, Reply> {
+    number.parse::<u32>().map_err(|_| {
+        Reply::error(
+            400,
+            format!("frame {number:?} is not a frame number (a whole number such as 12)"),
+        )
+    })
+}
+
+/// The frame number of the path and the source `method=` names, or the 400 that says why not.
+fn frame_and_source(shared: &Shared, number: &str, params: &Query) -> Result<(u32, Source), Reply> {
+    Ok((frame_number(number)?, params.source(shared, "method")?))
+}
+
+/// The key of frame `frame` of `source`, or 503 (no scene) or 404 (outside the timeline).
+fn key_in_range(shared: &Shared, source: Source, frame: u32) -> Result<FrameKey, Reply> {
+    let state = shared.lock();
+    let Some(scene) = state.scene.clone() else {
+        return Err(no_scene(&state));
+    };
+    if !state.frame_in_range(frame) {
+        return Err(Reply::error(
+            404,
+            format!(
+                "frame {frame} is outside the timeline of {} (frames {} to {})",
+                scene.name, scene.first_frame, scene.last_frame
+            ),
+        ));
+    }
+    Ok(state.frame_key(source, frame))
+}
+
 /// `/api/frame/<N>.png` and `/api/frame/<N>.json`.
 fn frame(shared: &Shared, rest: &str, params: &Query) -> Reply {
     let (number, extension) = rest.rsplit_once('.').unwrap_or((rest, ""));
@@ -263,15 +332,31 @@ fn frame(shared: &Shared, rest: &str, params: &Query) -> Reply {
             format!("/api/frame/{rest}: ask for /api/frame/<N>.png (the image) or /api/frame/<N>.json (its flag counts)"),
         );
     }
-    let Ok(frame) = number.parse::<u32>() else {
-        return Reply::error(
-            400,
-            format!("frame {number:?} is not a frame number (a whole number such as 12)"),
-        );
-    };
-    let method = match params.method() {
-        Ok(method) => method,
+    let (frame, source) = match frame_and_source(shared, number, params) {
+        Ok(found) => found,
         Err(reply) => return reply,
+    };
+    let against = match params.get("against") {
+        None | Some("") => None,
+        Some(_) => match params.source(shared, "against") {
+            Ok(against) => Some(against),
+            Err(reply) => return reply,
+        },
+    };
+    let layer = match params.get("layer") {
+        None | Some("") => Layer::Beauty,
+        Some(name) => match layers::layer_named(name) {
+            Some(layer) => layer,
+            None => {
+                return Reply::error(
+                    400,
+                    format!(
+                        "layer {name:?} is not a layer of the channel map; use one of {}",
+                        Layer::ALL.map(Layer::name).join(", ")
+                    ),
+                )
+            }
+        },
     };
     let exposure_stops = match params.get("exposure") {
         None | Some("") => 0.0,
@@ -303,40 +388,34 @@ fn frame(shared: &Shared, rest: &str, params: &Query) -> Reply {
         }
     }
 
-    let mut state = shared.lock();
-    let Some(scene) = state.scene.clone() else {
-        return no_scene(&state);
+    let key = match key_in_range(shared, source, frame) {
+        Ok(key) => key,
+        Err(reply) => return reply,
     };
-    if !state.frame_in_range(frame) {
-        return Reply::error(
-            404,
-            format!(
-                "frame {frame} is outside the timeline of {} (frames {} to {})",
-                scene.name, scene.first_frame, scene.last_frame
-            ),
-        );
-    }
-    let key = state.frame_key(method, frame);
     let image_key = ImageKey {
         frame: key,
         exposure_milli_stops: (exposure_stops * 1000.0).round() as i32,
         overlay_bits,
+        layer,
+        against,
     };
     let mut headers = vec![
         ("X-Snell-Frame", frame.to_string()),
         ("X-Snell-Generation", key.generation.to_string()),
-        ("X-Snell-Method", method.name().to_string()),
+        ("X-Snell-Method", params_name(shared, source)),
+        ("X-Snell-Layer", layer.name().to_string()),
     ];
     if extension == "png" {
-        if let Some(bytes) = state.images.get(&image_key) {
+        let mut state = shared.lock();
+        if let Some((bytes, legend)) = state.images.get(&image_key) {
             state.queue_prefetch(key);
             drop(state);
             shared.wake.notify_all();
             headers.push(("X-Snell-Cache", "image".to_string()));
+            headers.push(("X-Snell-Legend", legend.as_ref().clone()));
             return png_reply(bytes.as_ref().clone(), headers);
         }
     }
-    drop(state);
     let (cached, was_cached) = match wait_for_frame(shared, key) {
         Ok(found) => found,
         Err(reply) => return reply,
@@ -350,18 +429,161 @@ fn frame(shared: &Shared, rest: &str, params: &Query) -> Reply {
             200,
             json!({
                 "frame": frame,
-                "method": method.name(),
+                "method": params_name(shared, source),
                 "generation": key.generation,
                 "counts": cached.counts,
                 "stage_secs": cached.stage_secs,
+                "size": [cached.rendered.width, cached.rendered.height],
             }),
         );
         reply.headers = headers;
         return reply;
     }
-    let bytes = Arc::new(encode_png(&cached, exposure_stops, overlay_bits));
-    shared.lock().images.insert(image_key, Arc::clone(&bytes));
+    let other = match against {
+        Some(against) => match wait_for_frame(shared, FrameKey { source: against, ..key }) {
+            Ok((other, _)) => Some(other),
+            Err(reply) => return reply,
+        },
+        None => None,
+    };
+    let drawn = match &other {
+        Some(other) => layers::difference_image(&cached, other, layer).map(|(image, legend)| (encode(&image), legend)),
+        None if layer == Layer::Beauty => Some((
+            encode_png(&cached, exposure_stops, overlay_bits),
+            format!("beauty: tone-mapped at {exposure_stops:+.2} EV"),
+        )),
+        None => layers::layer_image(&cached, layer, exposure_stops).map(|(mut image, legend)| {
+            if overlay_bits != 0 {
+                overlay_flags(&mut image, &cached.rendered.flags, overlay_bits);
+            }
+            (encode(&image), legend)
+        }),
+    };
+    let Some((bytes, legend)) = drawn else {
+        return Reply::error(
+            404,
+            format!(
+                "frame {frame} of {} has no {} layer{}",
+                params_name(shared, source),
+                layer.name(),
+                if other.is_some() { " to compare (or the two frames differ in size)" } else { "" }
+            ),
+        );
+    };
+    let bytes = Arc::new(bytes);
+    shared
+        .lock()
+        .images
+        .insert(image_key, (Arc::clone(&bytes), Arc::new(legend.clone())));
+    headers.push(("X-Snell-Legend", legend));
     png_reply(bytes.as_ref().clone(), headers)
+}
+
+/// `/api/pixel/<N>?method=&x=&y=`: every channel's value at one pixel of frame N (as the frame's
+/// EXR holds it), the object's name, the flags set, and the distance from its `P` to the
+/// reference's `P` there once the reference frame is rendered (`reference.status` says whether it
+/// is; asking for its `/api/frame/<N>.json` renders it).
+fn pixel(shared: &Shared, number: &str, params: &Query) -> Reply {
+    let (frame, source) = match frame_and_source(shared, number, params) {
+        Ok(found) => found,
+        Err(reply) => return reply,
+    };
+    let key = match key_in_range(shared, source, frame) {
+        Ok(key) => key,
+        Err(reply) => return reply,
+    };
+    let (cached, _) = match wait_for_frame(shared, key) {
+        Ok(found) => found,
+        Err(reply) => return reply,
+    };
+    let (width, height) = (cached.rendered.width, cached.rendered.height);
+    let coordinate = |name: &str, size: u32| -> Result<u32, Reply> {
+        match params.get(name).map(str::parse::<u32>) {
+            Some(Ok(value)) if value < size => Ok(value),
+            _ => Err(Reply::error(
+                400,
+                format!("{name} must be a pixel column or row of the {width}x{height} frame (0 to {})", size - 1),
+            )),
+        }
+    };
+    let (x, y) = match (coordinate("x", width), coordinate("y", height)) {
+        (Ok(x), Ok(y)) => (x, y),
+        (Err(reply), _) | (_, Err(reply)) => return reply,
+    };
+    let channels = layers::pixel_channels(&cached, x, y);
+    let index = (y * width + x) as usize;
+    let object = cached.rendered.object.get(index).copied();
+    let object_name = object.map(|id| match id {
+        crate::draw::NO_OBJECT => "nothing (sky, or water with nothing behind it)".to_string(),
+        id => cached
+            .object_names
+            .get(id as usize - 1)
+            .cloned()
+            .unwrap_or_else(|| format!("object {id} (not named in the frame)")),
+    });
+    let bits = cached.rendered.flags.get(index).copied().unwrap_or(0);
+    let flags: Vec<&str> = OVERLAYS
+        .iter()
+        .filter(|(_, bit, _)| bits & bit != 0)
+        .map(|(name, _, _)| *name)
+        .collect();
+    let position = |frame: &CachedFrame| frame.rendered.position.get(index).copied();
+    let reference = match shared.reference_source() {
+        None => json!({ "status": "none", "message": "no --frames-dir folder holds the ray-traced reference (snell.method raytrace/exact-surface)" }),
+        Some(reference) if reference == source => json!({ "status": "this is the reference", "method": params_name(shared, reference) }),
+        Some(reference) => {
+            let reference_key = FrameKey { source: reference, ..key };
+            let found = shared.lock().frames.get(&reference_key);
+            let name = params_name(shared, reference);
+            match found {
+                None => json!({ "status": "not rendered", "method": name }),
+                Some(found) => match (position(cached.as_ref()), position(found.as_ref())) {
+                    (Some(p), Some(r)) => {
+                        let error = glam::Vec3::from(p).distance(glam::Vec3::from(r));
+                        let reference_object = found.rendered.object.get(index).copied();
+                        json!({
+                            "status": "rendered",
+                            "method": name,
+                            "P": r.map(|v| v.to_string()),
+                            "error_m": error.to_string(),
+                            "same_object": reference_object == object,
+                        })
+                    }
+                    _ => json!({ "status": "no P layer", "method": name }),
+                },
+            }
+        }
+    };
+    let mut reply = Reply::json(
+        200,
+        json!({
+            "x": x,
+            "y": y,
+            "frame": frame,
+            "method": params_name(shared, source),
+            "generation": key.generation,
+            // As text: Rust's shortest form that reads back as the same float32 (and `inf`, `NaN`).
+            "channels": channels.iter().map(|(name, value)| json!([name, value.to_string()])).collect::<Vec<_>>(),
+            "object": object.map(|id| json!({ "index": id, "name": object_name })),
+            "flags": flags,
+            "reference": reference,
+        }),
+    );
+    reply.headers = vec![("X-Snell-Frame", frame.to_string())];
+    reply
+}
+
+fn encode(image: &RgbaImage) -> Vec<u8> {
+    let mut bytes = Vec::new();
+    let encoder = image::codecs::png::PngEncoder::new_with_quality(
+        Cursor::new(&mut bytes),
+        image::codecs::png::CompressionType::Fast,
+        image::codecs::png::FilterType::Sub,
+    );
+    image
+        .write_with_encoder(encoder)
+        .expect("PNG encoding into memory cannot fail");
+    bytes
 }
 
 fn png_reply(body: Vec<u8>, headers: Vec<(&'static str, String)>) -> Reply {
@@ -436,16 +658,7 @@ fn encode_png(frame: &CachedFrame, exposure_stops: f32, overlay_bits: u32) -> Ve
     if overlay_bits != 0 {
         overlay_flags(&mut image, &frame.rendered.flags, overlay_bits);
     }
-    let mut bytes = Vec::new();
-    let encoder = image::codecs::png::PngEncoder::new_with_quality(
-        Cursor::new(&mut bytes),
-        image::codecs::png::CompressionType::Fast,
-        image::codecs::png::FilterType::Sub,
-    );
-    image
-        .write_with_encoder(encoder)
-        .expect("PNG encoding into memory cannot fail");
-    bytes
+    encode(&image)
 }
 
 /// How strongly a flagged pixel takes its flag's colour (enough to see, not enough to hide what
@@ -493,11 +706,12 @@ impl Query {
             .map(|(_, v)| v.as_str())
     }
 
-    fn method(&self) -> Result<Method, Reply> {
-        match self.get("method") {
-            None | Some("") => Ok(Method::default()),
-            Some(text) => Method::parse(text).map_err(|error| Reply::error(400, error.to_string())),
-        }
+    /// The source parameter `key` names (`method=`, `against=`): a method, or a `--frames-dir`
+    /// folder's name; the default source when absent.
+    fn source(&self, shared: &Shared, key: &str) -> Result<Source, Reply> {
+        shared
+            .source_named(self.get(key))
+            .map_err(|message| Reply::error(400, format!("{key}: {message}")))
     }
 }
 

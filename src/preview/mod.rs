@@ -1,14 +1,21 @@
-//! `snell preview`: a local web page to scrub a scene's timeline. Receives a scene path and a
-//! preview size; serves on 127.0.0.1 a page (frame, timeline slider, play/pause, step, exposure,
-//! method, flag overlays, a strip of per-frame flag counts) and a small HTTP API:
+//! `snell preview`: a local web page to scrub a scene's timeline, or folders of rendered EXRs
+//! (`--frames-dir`, see `source.rs`). Receives a scene path and a preview size (or the folders);
+//! serves on 127.0.0.1 a page (frame, zoom and pan, timeline slider, play/pause, J/K/L, a loop
+//! range, a frame number to type, exposure, method A and B with wipe and difference, a layer
+//! to view, flag overlays, a pixel inspector, a strip of per-frame flag counts) and a small API:
 //!
 //! - `GET /` — the page (no external resources).
 //! - `GET /api/scene` — the scene's state: `revision` (changes whenever the page must refresh),
 //!   `generation` (changes when a new version of the scene is loaded), name, frame range, fps,
-//!   size, methods, the current load `problem` (file, line and message) and a `notice`.
-//! - `GET /api/frame/<N>.png?method=&exposure=&flags=` — frame N tone-mapped at `exposure` stops,
-//!   with the named flag masks (`convergence,boundary,popping,extrapolated`) overlaid.
+//!   size, methods (the sources: methods, or folders), layers, the reference source, the current
+//!   load `problem` (file, line and message) and a `notice`.
+//! - `GET /api/frame/<N>.png?method=&exposure=&flags=&layer=&against=` — frame N's `layer`
+//!   (default the beauty) drawn as `layers.rs` says, tone-mapped at `exposure` stops, with the
+//!   named flag masks (`convergence,boundary,popping,extrapolated`) overlaid; with `against=` the
+//!   difference of the layer between the two sources.
 //! - `GET /api/frame/<N>.json?method=` — the frame's flag counts and seconds per stage.
+//! - `GET /api/pixel/<N>?method=&x=&y=` — every channel's value at one pixel as the frame's EXR
+//!   holds it, the object's name, the flags, and the position error against the reference.
 //! - `GET /api/strip?method=` — flag counts of every frame (null until computed).
 //! - `GET /api/health` — the render worker's and the file watcher's state: 200 while both run,
 //!   503 when one was given up after repeated panics (`/api/scene` carries the same, and the page
@@ -31,9 +38,11 @@
 
 pub mod client;
 mod http;
+mod layers;
 mod lru;
 mod page;
 mod server;
+mod source;
 mod worker;
 
 use std::collections::{HashMap, VecDeque};
@@ -47,6 +56,7 @@ use crate::frame::{Method, RenderJob, SnellError};
 use crate::refraction::flags::FlagCounts;
 
 use lru::Lru;
+use source::{Folder, Source};
 
 pub mod bench;
 
@@ -63,6 +73,9 @@ pub struct PreviewOptions {
     pub out_dir: Option<PathBuf>,
     /// How often the scene file and its assets are checked for changes.
     pub watch_interval: Duration,
+    /// Folders of rendered EXR frames to play back instead of rendering the scene (`--frames-dir`,
+    /// once per folder; each is a source to compare A/B). When set, `scene_path` is not read.
+    pub frames_dirs: Vec<PathBuf>,
     /// Failures made on purpose, for the tests of the preview's own recovery (the CLI never sets
     /// them; no request or environment variable can).
     pub faults: Faults,
@@ -86,34 +99,48 @@ impl PreviewOptions {
             width: 640,
             height: 360,
             out_dir: None,
+            frames_dirs: Vec::new(),
             watch_interval: Duration::from_millis(250),
             faults: Faults::default(),
         }
     }
 }
 
-/// Frames of different generations (scene versions) or methods never mix.
+/// Frames of different generations (scene versions) or sources never mix.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 struct FrameKey {
     generation: u64,
-    method: Method,
+    source: Source,
     frame: u32,
 }
 
-/// One encoded image: a frame at one exposure with one set of overlays.
+/// One encoded image: a layer of a frame (or its difference to another source's frame) at one
+/// exposure with one set of overlays.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 struct ImageKey {
     frame: FrameKey,
     /// Exposure in 1/1000 stop (floats are not hashable).
     exposure_milli_stops: i32,
     overlay_bits: u32,
+    layer: crate::output::exr::channels::Layer,
+    /// The difference view: the source the frame is compared with.
+    against: Option<Source>,
 }
 
-/// A rendered frame kept for the page.
+/// A rendered (or decoded) frame kept for the page.
 struct CachedFrame {
     rendered: RenderedFrame,
-    counts: FlagCounts,
+    /// None for a frame read from a file (the vertex and triangle counts are not stored).
+    counts: Option<FlagCounts>,
     stage_secs: std::collections::BTreeMap<String, f64>,
+    /// Names of the object indices (`IndexOB` 1 is the first).
+    object_names: Arc<Vec<String>>,
+    /// How the frame's channels are stored (a file's own choice; the defaults for a render).
+    write: crate::output::exr::WriteOptions,
+    /// A frame read from a file: the file's own channels, as it stores them (derived layers such
+    /// as `Refraction` were computed from the float32 beauty before a `--half` file rounded it,
+    /// so they cannot be derived again from what the file holds).
+    file_channels: Option<Vec<(String, Vec<f32>)>>,
 }
 
 /// What the page shows about the loaded scene.
@@ -150,9 +177,10 @@ struct State {
     /// Why a frame could not be rendered: HTTP status (422 for the scene's fault, 500 for the
     /// renderer's) and message.
     failed: HashMap<FrameKey, (u16, String)>,
-    images: Lru<ImageKey, Arc<Vec<u8>>>,
-    /// Strips by method; the worker fills the ones present here.
-    strips: HashMap<Method, Strip>,
+    /// Encoded images and the line saying what they show.
+    images: Lru<ImageKey, (Arc<Vec<u8>>, Arc<String>)>,
+    /// Strips by source; the worker fills the ones present here (rendered sources only).
+    strips: HashMap<Source, Strip>,
     /// Set when the GPU renderer cannot be created: every frame request fails with it.
     renderer_problem: Option<String>,
     /// The worker is rendering or refracting (for the bench: it waits for an idle worker).
@@ -214,10 +242,10 @@ impl ThreadHealth {
 }
 
 impl State {
-    fn frame_key(&self, method: Method, frame: u32) -> FrameKey {
+    fn frame_key(&self, source: Source, frame: u32) -> FrameKey {
         FrameKey {
             generation: self.generation,
-            method,
+            source,
             frame,
         }
     }
@@ -228,10 +256,17 @@ impl State {
             .is_some_and(|s| (s.first_frame..=s.last_frame).contains(&frame))
     }
 
-    /// Queues the neighbours of `key` (forward first: playback and scrubbing mostly go forward).
+    /// Queues the neighbours of `key` (forward first: playback and scrubbing mostly go forward);
+    /// frames read from files are cheaper, and decoded further ahead of the playhead.
     fn queue_prefetch(&mut self, key: FrameKey) {
         self.prefetch.clear();
-        for offset in [1i64, 2, -1, 3, 4, -2] {
+        const RENDERED: &[i64] = &[1, 2, -1, 3, 4, -2];
+        const DECODED: &[i64] = &[1, 2, 3, -1, 4, 5, 6, -2, 7, 8];
+        let offsets = match key.source {
+            Source::Method(_) => RENDERED,
+            Source::Folder(_) => DECODED,
+        };
+        for &offset in offsets {
             let frame = key.frame as i64 + offset;
             if frame < 0 || !self.frame_in_range(frame as u32) {
                 continue;
@@ -255,11 +290,71 @@ struct Shared {
     height: u32,
     out_dir: Option<PathBuf>,
     faults: Faults,
+    /// The `--frames-dir` folders (empty when the scene is rendered).
+    folders: Vec<Folder>,
     /// Watcher panics still to inject.
     watcher_panics_left: std::sync::atomic::AtomicU32,
 }
 
 impl Shared {
+    /// The sources the page chooses from, with their names and descriptions.
+    fn sources(&self) -> Vec<(Source, String, String)> {
+        if self.folders.is_empty() {
+            Method::ALL
+                .iter()
+                .map(|&m| (Source::Method(m), m.name().to_string(), m.description().to_string()))
+                .collect()
+        } else {
+            self.folders
+                .iter()
+                .enumerate()
+                .map(|(index, folder)| {
+                    let method = folder.method_label.as_deref().unwrap_or("method not recorded");
+                    let description = format!("{} ({} frames, {method})", folder.shown, folder.files.len());
+                    (Source::Folder(index as u8), folder.name.clone(), description)
+                })
+                .collect()
+        }
+    }
+
+    fn default_source(&self) -> Source {
+        if self.folders.is_empty() {
+            Source::Method(Method::default())
+        } else {
+            Source::Folder(0)
+        }
+    }
+
+    /// The source a request names (`method=`); the default one for none.
+    fn source_named(&self, name: Option<&str>) -> Result<Source, String> {
+        let Some(name) = name.filter(|n| !n.is_empty()) else {
+            return Ok(self.default_source());
+        };
+        let sources = self.sources();
+        match sources.iter().find(|(_, n, _)| n == name) {
+            Some((source, _, _)) => Ok(*source),
+            None if self.folders.is_empty() => {
+                Method::parse(name).map(Source::Method).map_err(|error| error.to_string())
+            }
+            None => Err(format!(
+                "{name:?} is not a source of this preview; choose one of {}",
+                sources.iter().map(|(_, n, _)| n.as_str()).collect::<Vec<_>>().join(", ")
+            )),
+        }
+    }
+
+    /// The source whose frames are the ray-traced reference (the inspector's position error).
+    fn reference_source(&self) -> Option<Source> {
+        if self.folders.is_empty() {
+            Some(Source::Method(Method::Raytrace))
+        } else {
+            self.folders
+                .iter()
+                .position(Folder::is_reference)
+                .map(|index| Source::Folder(index as u8))
+        }
+    }
+
     fn lock(&self) -> MutexGuard<'_, State> {
         // A panicking request thread must not take the server down with a poisoned lock.
         self.state
@@ -292,7 +387,15 @@ impl PreviewServer {
             .map(|address| address.port())
             .unwrap_or(options.port);
         let url = format!("http://127.0.0.1:{port}/");
-        let frame_bytes = options.width as usize * options.height as usize * 40;
+        let mut folders: Vec<Folder> = Vec::new();
+        for dir in &options.frames_dirs {
+            let taken: Vec<String> = folders.iter().map(|f| f.name.clone()).collect();
+            folders.push(source::scan_folder(dir, &taken)?);
+        }
+        let (width, height) = folders.first().map_or((options.width, options.height), |f| f.size);
+        // A frame read from a file keeps the file's channels too (about 30 floats a pixel).
+        let bytes_per_pixel = if folders.is_empty() { 40 } else { 160 };
+        let frame_bytes = width as usize * height as usize * bytes_per_pixel;
         // About 1 GiB of linear frames (8 MiB each at 640x360: 128 frames), at least 8.
         let frame_capacity = ((1usize << 30) / frame_bytes.max(1)).clamp(8, 512);
         let shared = Arc::new(Shared {
@@ -317,16 +420,22 @@ impl PreviewServer {
                 stopping: false,
             }),
             wake: Condvar::new(),
-            width: options.width,
-            height: options.height,
+            width,
+            height,
             out_dir: options.out_dir.clone(),
+            folders,
             watcher_panics_left: options.faults.watcher_panics.into(),
             faults: options.faults.clone(),
         });
-        let mut watcher = Watcher::new(options.scene_path.clone());
-        watcher.reload(&shared);
-
         let mut threads = Vec::new();
+        let watcher = if shared.folders.is_empty() {
+            let mut watcher = Watcher::new(options.scene_path.clone());
+            watcher.reload(&shared);
+            Some(watcher)
+        } else {
+            open_folders(&shared);
+            None
+        };
         let worker_shared = Arc::clone(&shared);
         threads.push(
             std::thread::Builder::new()
@@ -334,14 +443,16 @@ impl PreviewServer {
                 .spawn(move || worker::supervise(&worker_shared))
                 .expect("spawning a thread"),
         );
-        let watch_shared = Arc::clone(&shared);
-        let interval = options.watch_interval;
-        threads.push(
-            std::thread::Builder::new()
-                .name("preview-watch".into())
-                .spawn(move || watcher.supervise(&watch_shared, interval))
-                .expect("spawning a thread"),
-        );
+        if let Some(watcher) = watcher {
+            let watch_shared = Arc::clone(&shared);
+            let interval = options.watch_interval;
+            threads.push(
+                std::thread::Builder::new()
+                    .name("preview-watch".into())
+                    .spawn(move || watcher.supervise(&watch_shared, interval))
+                    .expect("spawning a thread"),
+            );
+        }
         let handler_shared = Arc::clone(&shared);
         let http = server::HttpServer::start(
             listener,
@@ -379,6 +490,30 @@ impl PreviewServer {
             let _ = thread.join();
         }
     }
+}
+
+/// Shows the `--frames-dir` folders as the timeline: every frame number any folder holds (a frame
+/// a folder lacks is answered 404 for it), at the first folder's frame rate; the first frame is
+/// decoded at once.
+fn open_folders(shared: &Shared) {
+    let numbers: Vec<u32> = shared
+        .folders
+        .iter()
+        .flat_map(|folder| folder.files.keys().copied())
+        .collect();
+    let first = &shared.folders[0];
+    let mut state = shared.lock();
+    state.revision += 1;
+    state.generation += 1;
+    state.scene = Some(SceneInfo {
+        name: first.name.clone(),
+        path: first.shown.clone(),
+        first_frame: numbers.iter().copied().min().unwrap_or(1),
+        last_frame: numbers.iter().copied().max().unwrap_or(1),
+        fps: first.fps.unwrap_or(24.0),
+    });
+    let first_key = state.frame_key(Source::Folder(0), *first.files.keys().next().unwrap_or(&1));
+    state.prefetch.push_back(first_key);
 }
 
 /// Size and modification time of a file (None: missing); the scene file itself is compared by
@@ -557,12 +692,12 @@ impl Watcher {
                 state.images.clear();
                 // The first frame is rendered at once: the page asks for it first, and the
                 // renderer's first frame (pipelines, textures) is the slowest.
-                let first = state.frame_key(Method::default(), timeline_first);
+                let first = state.frame_key(Source::Method(Method::default()), timeline_first);
                 state.prefetch.push_back(first);
-                let methods: Vec<Method> = state.strips.keys().copied().collect();
+                let sources: Vec<Source> = state.strips.keys().copied().collect();
                 state.strips.clear();
-                for method in methods.into_iter().chain([Method::default()]) {
-                    worker::want_strip(&mut state, method);
+                for source in sources.into_iter().chain([Source::Method(Method::default())]) {
+                    worker::want_strip(&mut state, source);
                 }
             }
             Err(error) => {

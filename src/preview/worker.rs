@@ -6,6 +6,7 @@
 use std::collections::HashMap;
 use std::sync::Arc;
 
+use super::source::Source;
 use super::{CachedFrame, FrameKey, Shared, State, Strip};
 use crate::frame::{Method, RenderJob, SnellError};
 use crate::gpu::Renderer;
@@ -13,11 +14,15 @@ use crate::refraction::flags::TrackingState;
 
 use super::lru::Lru;
 
-/// Asks the worker to fill the strip of `method` (no-op when it already exists).
-pub(super) fn want_strip(state: &mut State, method: Method) {
+/// Asks the worker to fill the strip of `source` (no-op when it already exists, and for frames
+/// read from files, whose vertex and triangle counts are not stored).
+pub(super) fn want_strip(state: &mut State, source: Source) {
     let Some(scene) = &state.scene else { return };
+    if source.method().is_none() {
+        return;
+    }
     let frames = (scene.last_frame - scene.first_frame + 1) as usize;
-    state.strips.entry(method).or_insert_with(|| Strip {
+    state.strips.entry(source).or_insert_with(|| Strip {
         counts: vec![None; frames],
     });
 }
@@ -48,7 +53,7 @@ struct Worker<'a> {
     /// Tracking states of recently refracted frames, so a frame after one just rendered needs no
     /// recomputation of its predecessor.
     trackings: Lru<FrameKey, Arc<TrackingState>>,
-    cursors: HashMap<Method, StripCursor>,
+    cursors: HashMap<Source, StripCursor>,
 }
 
 /// Runs the worker; a panic fails the frame it was on at once (500, so no request waits for it),
@@ -95,12 +100,17 @@ pub(super) fn supervise(shared: &Shared) {
 }
 
 fn run(shared: &Shared, loaded: &mut Loaded) {
-    // The renderer is made before the first request, so no request pays for creating it.
-    let renderer = match Renderer::new() {
-        Ok(renderer) => Some(renderer),
-        Err(error) => {
-            shared.lock().renderer_problem = Some(error.to_string());
-            None
+    // The renderer is made before the first request, so no request pays for creating it; frames
+    // read from files need none.
+    let renderer = if !shared.folders.is_empty() {
+        None
+    } else {
+        match Renderer::new() {
+            Ok(renderer) => Some(renderer),
+            Err(error) => {
+                shared.lock().renderer_problem = Some(error.to_string());
+                None
+            }
         }
     };
     let mut worker = Worker {
@@ -123,11 +133,11 @@ fn run(shared: &Shared, loaded: &mut Loaded) {
                         Ok(frame) => {
                             state.worker.panics_in_a_row = 0;
                             let first = state.scene.as_ref().map_or(0, |s| s.first_frame);
-                            if let Some(strip) = state.strips.get_mut(&key.method) {
+                            if let Some(strip) = state.strips.get_mut(&key.source) {
                                 if let Some(slot) =
                                     strip.counts.get_mut((key.frame - first) as usize)
                                 {
-                                    *slot = Some(frame.counts);
+                                    *slot = frame.counts;
                                 }
                             }
                             state.frames.insert(key, Arc::new(frame));
@@ -151,7 +161,7 @@ fn run(shared: &Shared, loaded: &mut Loaded) {
                 }
                 if key.generation == state.generation {
                     let first = state.scene.as_ref().map_or(0, |s| s.first_frame);
-                    if let Some(strip) = state.strips.get_mut(&key.method) {
+                    if let Some(strip) = state.strips.get_mut(&key.source) {
                         if let Some(slot) = strip.counts.get_mut((key.frame - first) as usize) {
                             // A frame whose refraction fails keeps no counts; the page shows it
                             // as missing, and the frame request itself reports the error.
@@ -180,7 +190,8 @@ fn next_task(shared: &Shared, worker: &mut Worker) -> Option<Task> {
             worker.trackings.clear();
             worker.cursors.clear();
         }
-        if worker.loaded.job.is_some() && worker.loaded.generation == state.generation {
+        let reading_files = !shared.folders.is_empty();
+        if reading_files || (worker.loaded.job.is_some() && worker.loaded.generation == state.generation) {
             let mut task = None;
             while let Some(key) = state.demand.pop_front() {
                 if is_wanted(&state, key) {
@@ -223,11 +234,11 @@ fn is_wanted(state: &State, key: FrameKey) -> bool {
 /// The next frame some strip lacks counts for.
 fn next_count(state: &State, worker: &mut Worker) -> Option<FrameKey> {
     let scene = state.scene.as_ref()?;
-    let mut methods: Vec<Method> = state.strips.keys().copied().collect();
-    methods.sort_by_key(|m| m.name());
-    for method in methods {
-        let strip = &state.strips[&method];
-        let cursor = worker.cursors.entry(method).or_insert(StripCursor {
+    let mut sources: Vec<Source> = state.strips.keys().copied().collect();
+    sources.sort_by_key(|s| s.method().map(Method::name));
+    for source in sources {
+        let strip = &state.strips[&source];
+        let cursor = worker.cursors.entry(source).or_insert(StripCursor {
             next_frame: scene.first_frame,
             previous: None,
         });
@@ -240,7 +251,7 @@ fn next_count(state: &State, worker: &mut Worker) -> Option<FrameKey> {
             cursor.previous = None;
         }
         if cursor.next_frame <= scene.last_frame {
-            return Some(state.frame_key(method, cursor.next_frame));
+            return Some(state.frame_key(source, cursor.next_frame));
         }
     }
     None
@@ -266,7 +277,7 @@ impl Worker<'_> {
         if let Some(tracking) = self.trackings.get(&previous_key) {
             return Ok(Some(tracking));
         }
-        let job = self.job_for(key.method);
+        let job = self.job_for(key.source.method().expect("rendered sources only"));
         Ok(job
             .previous_tracking(key.frame, shared.width, shared.height)?
             .map(Arc::new))
@@ -276,16 +287,20 @@ impl Worker<'_> {
         if shared.faults.worker_panic_frame == Some(key.frame) {
             panic!("an injected render-worker panic (Faults::worker_panic_frame)");
         }
+        let method = match key.source {
+            Source::Method(method) => method,
+            Source::Folder(index) => return decode(shared, index, key.frame),
+        };
         // The ray-traced methods render on the CPU and need no GPU.
-        if self.renderer.is_none() && key.method.uses_gpu() {
+        if self.renderer.is_none() && method.uses_gpu() {
             let problem = shared.lock().renderer_problem.clone().unwrap_or_default();
             return Err(SnellError::Argument(format!("no GPU renderer: {problem}")));
         }
         let previous = self.previous_tracking(shared, key)?;
         let (width, height) = (shared.width, shared.height);
         let job = self.loaded.job.as_mut().expect("a task implies a job");
-        job.method = key.method;
-        let renderer = self.renderer.as_mut().filter(|_| key.method.uses_gpu());
+        job.method = method;
+        let renderer = self.renderer.as_mut().filter(|_| method.uses_gpu());
         let renderer = match renderer {
             Some(renderer) if !self.textures_uploaded => {
                 job.upload_textures(renderer)?;
@@ -301,8 +316,11 @@ impl Worker<'_> {
         self.trackings.insert(key, Arc::new(refracted.tracking));
         Ok(CachedFrame {
             rendered,
-            counts,
+            counts: Some(counts),
             stage_secs,
+            object_names: Arc::new(job.object_names()),
+            write: crate::output::exr::WriteOptions::default(),
+            file_channels: None,
         })
     }
 
@@ -315,18 +333,18 @@ impl Worker<'_> {
     ) -> Result<crate::refraction::flags::FlagCounts, SnellError> {
         let cursor_previous = self
             .cursors
-            .get_mut(&key.method)
+            .get_mut(&key.source)
             .and_then(|cursor| cursor.previous.take());
         let previous = match cursor_previous {
             Some(tracking) => Some(Arc::new(tracking)),
             None => self.previous_tracking(shared, key)?,
         };
         let (width, height) = (shared.width, shared.height);
-        let job = self.job_for(key.method);
+        let job = self.job_for(key.source.method().expect("strips of rendered sources only"));
         let result = job.refract(key.frame, width, height, previous.as_deref());
         let cursor = self
             .cursors
-            .get_mut(&key.method)
+            .get_mut(&key.source)
             .expect("next_count made the cursor");
         cursor.next_frame = key.frame + 1;
         let refracted = result?;
@@ -334,4 +352,40 @@ impl Worker<'_> {
         cursor.previous = Some(refracted.tracking);
         Ok(counts)
     }
+}
+
+/// Frame `frame` of `--frames-dir` folder `index`, read from its EXR file (with the read's time
+/// as its only stage). A frame the folder lacks, or a file that does not read, is the input's
+/// fault (422), named with its file.
+fn decode(shared: &Shared, index: u8, frame: u32) -> Result<CachedFrame, SnellError> {
+    let folder = &shared.folders[index as usize];
+    let Some(path) = folder.files.get(&frame) else {
+        return Err(SnellError::Argument(format!(
+            "{} holds no frame {frame} (it has {} frames, {} to {})",
+            folder.shown,
+            folder.files.len(),
+            folder.files.keys().next().unwrap_or(&0),
+            folder.files.keys().next_back().unwrap_or(&0)
+        )));
+    };
+    let started = std::time::Instant::now();
+    let (rendered, meta) = crate::output::exr::read_frame_exr(path).map_err(SnellError::Output)?;
+    let file = crate::output::exr::read_channels(path).map_err(SnellError::Output)?;
+    // In the file's order (the reader sorts by name): the order the writer gives them.
+    let order: Vec<String> = crate::output::exr::channel_values(&rendered, &meta.object_names, &meta.write, 0..0, |_| true)
+        .into_iter()
+        .map(|(name, _)| name)
+        .collect();
+    let mut channels: Vec<(String, Vec<f32>)> = file.channels.into_iter().collect();
+    channels.sort_by_key(|(name, _)| order.iter().position(|n| n == name).unwrap_or(usize::MAX));
+    let mut stage_secs = std::collections::BTreeMap::new();
+    stage_secs.insert("read_exr".to_string(), started.elapsed().as_secs_f64());
+    Ok(CachedFrame {
+        rendered,
+        counts: None,
+        stage_secs,
+        object_names: Arc::new(meta.object_names),
+        write: meta.write,
+        file_channels: Some(channels),
+    })
 }

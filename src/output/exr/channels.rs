@@ -79,7 +79,7 @@ pub fn crypto_rank_channels() -> Vec<(String, String)> {
 
 /// A layer of the map that frames hold today, as `--layers` names it: the layer name before the
 /// dot, `beauty` for `R, G, B, A` and `Z` for the depth.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum Layer {
     Beauty,
     Depth,

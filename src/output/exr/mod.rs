@@ -411,6 +411,49 @@ fn frame_channels<'a>(
     list
 }
 
+/// The values of `frame`'s channels whose names `wanted` accepts, as [`write_frame_exr`] would store
+/// them with `write` (half samples rounded as the file holds them), for rows `rows`: each channel's
+/// name and its samples, row after row. The one mapping from a frame to its channels, for readers
+/// that need a file's values without a file (the preview's inspector and layer views).
+pub fn channel_values(
+    frame: &RenderedFrame,
+    object_names: &[String],
+    write: &WriteOptions,
+    rows: std::ops::Range<usize>,
+    wanted: impl Fn(&str) -> bool,
+) -> Vec<(String, Vec<f32>)> {
+    let water_id = cryptomatte::id_float(&cryptomatte::water_name(object_names));
+    let crypto_ids: Vec<f32> = object_names
+        .iter()
+        .map(|name| cryptomatte::id_float(name))
+        .collect();
+    let mut bytes = Vec::new();
+    frame_channels(frame, &crypto_ids, water_id, write)
+        .into_iter()
+        .filter(|channel| wanted(&channel.name))
+        .map(|channel| {
+            let mut values = Vec::with_capacity(rows.len() * frame.width as usize);
+            for y in rows.clone() {
+                bytes.clear();
+                (channel.fill)(y, &mut bytes);
+                match channel.sample_type {
+                    ::exr::meta::attribute::SampleType::F16 => values.extend(
+                        bytes.chunks_exact(2).map(|b| {
+                            ::exr::prelude::f16::from_bits(u16::from_ne_bytes([b[0], b[1]])).to_f32()
+                        }),
+                    ),
+                    _ => values.extend(
+                        bytes
+                            .chunks_exact(4)
+                            .map(|b| f32::from_ne_bytes([b[0], b[1], b[2], b[3]])),
+                    ),
+                }
+            }
+            (channel.name, values)
+        })
+        .collect()
+}
+
 /// A frame's EXR file written strip by strip (bands of rows, top first), as the renderer reads
 /// them back: the header from the first strip's layers, then each strip's chunks. The file's
 /// bytes are the same however the frame is cut into strips.
