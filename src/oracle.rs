@@ -363,8 +363,7 @@ impl OracleWater<'_> {
             {
                 continue;
             }
-            let lambda = (1.0 + b.slope_bound * b.slope_bound)
-                * (n1 / d_e_cell + n2 / d_v_cell)
+            let lambda = (1.0 + b.slope_bound * b.slope_bound) * (n1 / d_e_cell + n2 / d_v_cell)
                 + (n1 + n2) * b.curvature_bound;
             if grad.length() > lambda * r * std::f64::consts::SQRT_2 {
                 continue;

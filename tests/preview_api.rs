@@ -699,7 +699,9 @@ fn pixels_layers_and_differences_are_served() {
         })
         .expect("a pixel seen through water");
     let (x, y) = (index as u32 % WIDTH, index as u32 / WIDTH);
-    let pixel = fetch(&server, &format!("/api/pixel/9?x={x}&y={y}")).json().unwrap();
+    let pixel = fetch(&server, &format!("/api/pixel/9?x={x}&y={y}"))
+        .json()
+        .unwrap();
     let value = |name: &str| -> f32 {
         let found = pixel["channels"]
             .as_array()
@@ -715,18 +717,35 @@ fn pixels_layers_and_differences_are_served() {
     }
     assert_eq!(value("Z").to_bits(), rendered.depth_m[index].to_bits());
     for (c, name) in ["P.X", "P.Y", "P.Z"].into_iter().enumerate() {
-        assert_eq!(value(name).to_bits(), rendered.position[index][c].to_bits(), "{name}");
+        assert_eq!(
+            value(name).to_bits(),
+            rendered.position[index][c].to_bits(),
+            "{name}"
+        );
     }
     assert_eq!(value("IndexOB.X"), rendered.object[index] as f32);
     assert_eq!(value("WaterMatte.X"), 1.0);
-    assert_eq!(pixel["object"]["name"], names[rendered.object[index] as usize - 1]);
+    assert_eq!(
+        pixel["object"]["name"],
+        names[rendered.object[index] as usize - 1]
+    );
     assert_eq!(pixel["reference"]["status"], "not rendered");
 
     // Once the reference frame is rendered, the error is the distance between the two P's.
-    assert_eq!(fetch(&server, "/api/frame/9.json?method=raytrace").status, 200);
-    let pixel = fetch(&server, &format!("/api/pixel/9?x={x}&y={y}")).json().unwrap();
+    assert_eq!(
+        fetch(&server, "/api/frame/9.json?method=raytrace").status,
+        200
+    );
+    let pixel = fetch(&server, &format!("/api/pixel/9?x={x}&y={y}"))
+        .json()
+        .unwrap();
     assert_eq!(pixel["reference"]["status"], "rendered", "{pixel}");
-    let reference = fetch(&server, &format!("/api/pixel/9?method=raytrace&x={x}&y={y}")).json().unwrap();
+    let reference = fetch(
+        &server,
+        &format!("/api/pixel/9?method=raytrace&x={x}&y={y}"),
+    )
+    .json()
+    .unwrap();
     assert_eq!(reference["reference"]["status"], "this is the reference");
     let p = |pixel: &serde_json::Value, name: &str| -> f64 {
         let pairs = pixel["channels"].as_array().unwrap();
@@ -738,8 +757,15 @@ fn pixels_layers_and_differences_are_served() {
         .map(|c| (p(&pixel, c) - p(&reference, c)).powi(2))
         .sum::<f64>()
         .sqrt();
-    let error: f64 = pixel["reference"]["error_m"].as_str().unwrap().parse().unwrap();
-    assert!((error - distance).abs() <= 1e-6 * distance.max(1e-3), "{error} vs {distance}");
+    let error: f64 = pixel["reference"]["error_m"]
+        .as_str()
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!(
+        (error - distance).abs() <= 1e-6 * distance.max(1e-3),
+        "{error} vs {distance}"
+    );
 
     // Every layer of the map is an image of the frame's size, with a legend.
     let scene_state = fetch(&server, "/api/scene").json().unwrap();
@@ -755,12 +781,26 @@ fn pixels_layers_and_differences_are_served() {
         let response = fetch(&server, &format!("/api/frame/9.png?layer={layer}"));
         let image = png(&response);
         assert_eq!(image.dimensions(), (WIDTH, HEIGHT), "{layer}");
-        assert!(!response.header("x-snell-legend").unwrap_or("").is_empty(), "{layer}");
+        assert!(
+            !response.header("x-snell-legend").unwrap_or("").is_empty(),
+            "{layer}"
+        );
         distinct.insert(image.into_raw());
     }
-    assert!(distinct.len() >= layers.len() - 5, "layers drawn alike: {} distinct of {}", distinct.len(), layers.len());
-    let same = png(&fetch(&server, "/api/frame/9.png?method=equal-t&against=equal-t"));
-    assert!(same.pixels().all(|p| p.0[..3] == [0, 0, 0]), "a frame against itself is black");
+    assert!(
+        distinct.len() >= layers.len() - 5,
+        "layers drawn alike: {} distinct of {}",
+        distinct.len(),
+        layers.len()
+    );
+    let same = png(&fetch(
+        &server,
+        "/api/frame/9.png?method=equal-t&against=equal-t",
+    ));
+    assert!(
+        same.pixels().all(|p| p.0[..3] == [0, 0, 0]),
+        "a frame against itself is black"
+    );
 
     // Bad requests.
     assert!(error_of(&server, &format!("/api/pixel/9?x={WIDTH}&y=0"), 400).contains("0 to 159"));
@@ -776,9 +816,18 @@ fn pixels_layers_and_differences_are_served() {
     // popping too), so the request outlived the 120 s wait; a tiny.toml frame refracts in 0.05 s.
     let tiny = start(&scene("tiny.toml"), &temp.path().join("tiny"));
     let difference = png(&fetch(&tiny, "/api/frame/2.png?against=thesis-plane"));
-    assert!(difference.pixels().any(|p| p.0[0] > 0), "equal-t and thesis-plane differ somewhere");
-    let same = png(&fetch(&tiny, "/api/frame/2.png?method=thesis-plane&against=thesis-plane"));
-    assert!(same.pixels().all(|p| p.0[..3] == [0, 0, 0]), "a frame against itself is black");
+    assert!(
+        difference.pixels().any(|p| p.0[0] > 0),
+        "equal-t and thesis-plane differ somewhere"
+    );
+    let same = png(&fetch(
+        &tiny,
+        "/api/frame/2.png?method=thesis-plane&against=thesis-plane",
+    ));
+    assert!(
+        same.pixels().all(|p| p.0[..3] == [0, 0, 0]),
+        "a frame against itself is black"
+    );
     tiny.stop();
 }
 
@@ -809,7 +858,12 @@ fn folders_of_rendered_frames_are_served() {
     assert_eq!(state["scene"]["first_frame"], 2);
     assert_eq!(state["scene"]["last_frame"], 4);
     assert_eq!(state["size"], serde_json::json!([160, 90]));
-    let methods: Vec<&str> = state["methods"].as_array().unwrap().iter().map(|m| m["name"].as_str().unwrap()).collect();
+    let methods: Vec<&str> = state["methods"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|m| m["name"].as_str().unwrap())
+        .collect();
     assert_eq!(methods, ["renders", "fewer"]);
     assert!(state["reference"].is_null());
 
@@ -818,16 +872,23 @@ fn folders_of_rendered_frames_are_served() {
     assert!(png(&fetch(&server, "/api/frame/3.png")) == tonemap_srgb8(&frame, 0.0));
     let file = snell::output::exr::read_channels(&exr).unwrap();
     let (x, y) = (80, 50);
-    let pixel = fetch(&server, &format!("/api/pixel/3?x={x}&y={y}")).json().unwrap();
+    let pixel = fetch(&server, &format!("/api/pixel/3?x={x}&y={y}"))
+        .json()
+        .unwrap();
     let channels = pixel["channels"].as_array().unwrap();
     assert_eq!(channels.len(), file.channels.len(), "{pixel}");
     for pair in channels {
         let name = pair[0].as_str().unwrap();
         let served: f32 = pair[1].as_str().unwrap().parse().unwrap();
-        let stored = file.get(name).unwrap_or_else(|| panic!("{name} is not in the file"))[y * 160 + x];
+        let stored = file
+            .get(name)
+            .unwrap_or_else(|| panic!("{name} is not in the file"))[y * 160 + x];
         assert_eq!(served.to_bits(), stored.to_bits(), "{name}");
     }
-    assert_eq!(file.types["R"], "f16", "--half: the values checked are the half beauty's");
+    assert_eq!(
+        file.types["R"], "f16",
+        "--half: the values checked are the half beauty's"
+    );
     assert!(error_of(&server, "/api/frame/2.png?method=fewer", 422).contains("holds no frame 2"));
     let strip = fetch(&server, "/api/strip?method=fewer").json().unwrap();
     assert_eq!(strip["available"], false);
@@ -842,5 +903,8 @@ fn folders_of_rendered_frames_are_served() {
         .unwrap();
     assert_eq!(output.status.code(), Some(2));
     let stderr = String::from_utf8_lossy(&output.stderr);
-    assert!(stderr.contains("--frames-dir") && stderr.contains("no EXR frames"), "{stderr}");
+    assert!(
+        stderr.contains("--frames-dir") && stderr.contains("no EXR frames"),
+        "{stderr}"
+    );
 }

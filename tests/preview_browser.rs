@@ -357,7 +357,9 @@ fn save(path: &Path, contents: impl AsRef<[u8]>) {
 static ONE_BROWSER: std::sync::Mutex<()> = std::sync::Mutex::new(());
 
 fn one_browser() -> std::sync::MutexGuard<'static, ()> {
-    ONE_BROWSER.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
+    ONE_BROWSER
+        .lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner())
 }
 
 /// `snell render` of `frames` at `size` with `extra` arguments into `out` (EXR, and PNG).
@@ -380,13 +382,21 @@ async fn press(client: &Client, key: char) {
     let keys = KeyActions::new("keyboard".into())
         .then(KeyAction::Down { value: key })
         .then(KeyAction::Up { value: key });
-    client.perform_actions(keys).await.expect("the key press runs");
+    client
+        .perform_actions(keys)
+        .await
+        .expect("the key press runs");
 }
 
 /// Moves the mouse over the centre of image pixel (`x`, `y`) of `#frame`, placed from the image
 /// element's own box on the screen (not from the page's zoom state), and waits until the
 /// inspector shows that pixel. Returns the inspector's A column: key to text.
-async fn hover_pixel(client: &Client, x: u32, y: u32, frame: u32) -> std::collections::BTreeMap<String, String> {
+async fn hover_pixel(
+    client: &Client,
+    x: u32,
+    y: u32,
+    frame: u32,
+) -> std::collections::BTreeMap<String, String> {
     let rect = client
         .execute(
             "const img = document.getElementById('frame'); const r = img.getBoundingClientRect(); \
@@ -397,7 +407,10 @@ async fn hover_pixel(client: &Client, x: u32, y: u32, frame: u32) -> std::collec
         .unwrap();
     let number = |i: usize| rect[i].as_f64().unwrap();
     let (left, top, sx, sy) = (number(0), number(1), number(2), number(3));
-    assert!(sx >= 3.0, "zoom in first, so the pointer lands inside one pixel (scale {sx})");
+    assert!(
+        sx >= 3.0,
+        "zoom in first, so the pointer lands inside one pixel (scale {sx})"
+    );
     let at_x = left + (x as f64 + 0.5) * sx;
     let at_y = top + (y as f64 + 0.5) * sy;
     let hover = MouseActions::new("mouse".into()).then(PointerAction::MoveTo {
@@ -405,14 +418,20 @@ async fn hover_pixel(client: &Client, x: u32, y: u32, frame: u32) -> std::collec
         x: at_x.round(),
         y: at_y.round(),
     });
-    client.perform_actions(hover).await.expect("the mouse moves");
+    client
+        .perform_actions(hover)
+        .await
+        .expect("the mouse moves");
     let script = format!(
         "const box = document.getElementById('inspector'); \
          if (box.dataset.x !== '{x}' || box.dataset.y !== '{y}' || box.dataset.frame !== '{frame}') return null; \
          const out = {{}}; for (const td of box.querySelectorAll('td[data-side=a]')) out[td.dataset.key] = td.textContent; \
          return out;"
     );
-    let shown = wait_for(client, "the inspector at the hovered pixel", &script, |v| !v.is_null()).await;
+    let shown = wait_for(client, "the inspector at the hovered pixel", &script, |v| {
+        !v.is_null()
+    })
+    .await;
     shown
         .as_object()
         .unwrap()
@@ -424,7 +443,12 @@ async fn hover_pixel(client: &Client, x: u32, y: u32, frame: u32) -> std::collec
 /// Checks that the inspector's values are the EXR file's at (`x`, `y`): every channel of the file
 /// (read here with the project's own EXR reader, not through the preview), bit for bit, no channel
 /// the file lacks, and the object's name and flags as the file's header and flag channels say.
-fn assert_inspector_equals_exr(shown: &std::collections::BTreeMap<String, String>, exr: &Path, x: u32, y: u32) {
+fn assert_inspector_equals_exr(
+    shown: &std::collections::BTreeMap<String, String>,
+    exr: &Path,
+    x: u32,
+    y: u32,
+) {
     let file = snell::output::exr::read_channels(exr).expect("the EXR reads");
     let (_, meta) = snell::output::exr::read_frame_exr(exr).expect("the EXR reads");
     let index = y as usize * file.width + x as usize;
@@ -439,7 +463,9 @@ fn assert_inspector_equals_exr(shown: &std::collections::BTreeMap<String, String
         let text = shown
             .get(&format!("channel:{name}"))
             .unwrap_or_else(|| panic!("the inspector lacks channel {name}"));
-        let value: f32 = text.parse().unwrap_or_else(|_| panic!("{name}: {text:?} is not a number"));
+        let value: f32 = text
+            .parse()
+            .unwrap_or_else(|_| panic!("{name}: {text:?} is not a number"));
         let expected = values[index];
         assert!(
             value.to_bits() == expected.to_bits() || (value.is_nan() && expected.is_nan()),
@@ -448,7 +474,11 @@ fn assert_inspector_equals_exr(shown: &std::collections::BTreeMap<String, String
     }
     let object = file.get("IndexOB.X").expect("an IndexOB layer")[index] as usize;
     assert!(object > 0, "choose a pixel that shows an object");
-    assert_eq!(shown["object"], meta.object_names[object - 1], "object name");
+    assert_eq!(
+        shown["object"],
+        meta.object_names[object - 1],
+        "object name"
+    );
     let flags: Vec<&str> = [
         ("FlagConvergence.X", "convergence"),
         ("FlagBoundary.X", "boundary"),
@@ -459,7 +489,11 @@ fn assert_inspector_equals_exr(shown: &std::collections::BTreeMap<String, String
     .filter(|(channel, _)| file.get(channel).unwrap()[index] > 0.5)
     .map(|(_, name)| *name)
     .collect();
-    let expected_flags = if flags.is_empty() { "none".to_string() } else { flags.join(", ") };
+    let expected_flags = if flags.is_empty() {
+        "none".to_string()
+    } else {
+        flags.join(", ")
+    };
     assert_eq!(shown["flags"], expected_flags, "flags");
 }
 
@@ -495,9 +529,18 @@ async fn image_pixels(client: &Client, id: &str) -> image::RgbaImage {
          canvas.getContext('2d').drawImage(img, 0, 0); \
          return canvas.toDataURL('image/png');"
     );
-    let data_url = client.execute(&script, vec![]).await.expect("canvas readback");
+    let data_url = client
+        .execute(&script, vec![])
+        .await
+        .expect("canvas readback");
     let bytes = base64::engine::general_purpose::STANDARD
-        .decode(data_url.as_str().unwrap().strip_prefix("data:image/png;base64,").unwrap())
+        .decode(
+            data_url
+                .as_str()
+                .unwrap()
+                .strip_prefix("data:image/png;base64,")
+                .unwrap(),
+        )
         .unwrap();
     image::load_from_memory(&bytes).unwrap().to_rgba8()
 }
@@ -560,13 +603,19 @@ async fn compare_zoom_layers_and_inspector_in_headless_chromium() {
         let time = wait_for(
             &client,
             "the switch to be drawn",
-            &format!("const t = window.view.switchTimes; return t.length > {index} ? t[{index}] : null;"),
+            &format!(
+                "const t = window.view.switchTimes; return t.length > {index} ? t[{index}] : null;"
+            ),
             |v| !v.is_null(),
         )
         .await;
         times.push(time.as_f64().unwrap());
         let expected = if key == 'b' { "frame-b" } else { "frame" };
-        assert_eq!(client.execute(ON_TOP, vec![]).await.unwrap(), expected, "after pressing {key}");
+        assert_eq!(
+            client.execute(ON_TOP, vec![]).await.unwrap(),
+            expected,
+            "after pressing {key}"
+        );
     }
     let after = client.execute(fetches, vec![]).await.unwrap();
     assert_eq!(before, after, "an A/B switch must fetch nothing");
@@ -583,7 +632,11 @@ async fn compare_zoom_layers_and_inspector_in_headless_chromium() {
     )
     .unwrap();
     let server_b = image::load_from_memory(&server_b.body).unwrap().to_rgba8();
-    assert_eq!(max_channel_difference(&b_pixels, &server_b), 0, "B is the thesis-plane frame");
+    assert_eq!(
+        max_channel_difference(&b_pixels, &server_b),
+        0,
+        "B is the thesis-plane frame"
+    );
 
     // Wipe: A left of the line, B right of it; difference: the |A - B| image.
     press(&client, 'w').await;
@@ -597,8 +650,17 @@ async fn compare_zoom_layers_and_inspector_in_headless_chromium() {
     assert_eq!(wiped, json!(["frame", "frame-b"]), "wipe");
     press(&client, 'd').await;
     assert_eq!(client.execute(ON_TOP, vec![]).await.unwrap(), "frame-diff");
-    let legend = client.find(Locator::Css("#legend")).await.unwrap().text().await.unwrap();
-    assert!(legend.contains("|A - B|") && legend.contains("pixels differ"), "legend {legend:?}");
+    let legend = client
+        .find(Locator::Css("#legend"))
+        .await
+        .unwrap()
+        .text()
+        .await
+        .unwrap();
+    assert!(
+        legend.contains("|A - B|") && legend.contains("pixels differ"),
+        "legend {legend:?}"
+    );
     press(&client, 'a').await;
 
     // Zoom: 1:1 shows one image pixel per CSS pixel, fit fills the viewport, + zooms in.
@@ -606,20 +668,31 @@ async fn compare_zoom_layers_and_inspector_in_headless_chromium() {
         const v = document.getElementById('viewport').getBoundingClientRect(); return [r.width, r.height, v.width, v.height];";
     press(&client, '1').await;
     let one = client.execute(image_box, vec![]).await.unwrap();
-    assert_eq!((one[0].as_f64().unwrap(), one[1].as_f64().unwrap()), (640.0, 360.0), "1:1");
+    assert_eq!(
+        (one[0].as_f64().unwrap(), one[1].as_f64().unwrap()),
+        (640.0, 360.0),
+        "1:1"
+    );
     press(&client, 'f').await;
     let fitted = client.execute(image_box, vec![]).await.unwrap();
     let f = |i: usize| fitted[i].as_f64().unwrap();
     assert!(
-        ((f(0) - f(2)).abs() < 1.0 && f(1) <= f(3) + 1.0) || ((f(1) - f(3)).abs() < 1.0 && f(0) <= f(2) + 1.0),
+        ((f(0) - f(2)).abs() < 1.0 && f(1) <= f(3) + 1.0)
+            || ((f(1) - f(3)).abs() < 1.0 && f(0) <= f(2) + 1.0),
         "fit: the image {}x{} fills the viewport {}x{} on one side",
-        f(0), f(1), f(2), f(3)
+        f(0),
+        f(1),
+        f(2),
+        f(3)
     );
     for _ in 0..8 {
         press(&client, '+').await;
     }
     let zoomed = client.execute(image_box, vec![]).await.unwrap();
-    assert!(zoomed[0].as_f64().unwrap() > 4.0 * 640.0, "zoomed in: {zoomed}");
+    assert!(
+        zoomed[0].as_f64().unwrap() > 4.0 * 640.0,
+        "zoomed in: {zoomed}"
+    );
 
     // The inspector shows the EXR's values at the pixel under the cursor.
     let (x, y) = pixel_through_water(&exr);
@@ -637,9 +710,21 @@ async fn compare_zoom_layers_and_inspector_in_headless_chromium() {
     )
     .await;
     let depth_pixels = image_pixels(&client, "frame").await;
-    assert!(max_channel_difference(&depth_pixels, &a_pixels) > 32, "the Z view differs from the beauty");
-    let legend = client.find(Locator::Css("#legend")).await.unwrap().text().await.unwrap();
-    assert!(legend.starts_with("Z: ") && legend.contains(" m "), "legend {legend:?}");
+    assert!(
+        max_channel_difference(&depth_pixels, &a_pixels) > 32,
+        "the Z view differs from the beauty"
+    );
+    let legend = client
+        .find(Locator::Css("#legend"))
+        .await
+        .unwrap()
+        .text()
+        .await
+        .unwrap();
+    assert!(
+        legend.starts_with("Z: ") && legend.contains(" m "),
+        "legend {legend:?}"
+    );
     client.close().await.unwrap();
 }
 
@@ -678,28 +763,46 @@ async fn a_folder_of_exrs_plays_back_and_inspects_in_headless_chromium() {
     let shown = wait_for(&client, "the first frame", SHOWN_FRAME, |v| !v.is_null()).await;
     assert_eq!(shown["frame"], "1");
     let sources = client
-        .execute("return [...document.getElementById('method').options].map(o => o.value);", vec![])
+        .execute(
+            "return [...document.getElementById('method').options].map(o => o.value);",
+            vec![],
+        )
         .await
         .unwrap();
-    assert_eq!(sources, json!(["equal-t", "raytrace"]), "each folder is a source");
+    assert_eq!(
+        sources,
+        json!(["equal-t", "raytrace"]),
+        "each folder is a source"
+    );
 
     // Type a frame number: the page shows that file's frame (the PNG `snell render` wrote with it).
     let input = client.find(Locator::Css("#frame-input")).await.unwrap();
     input.clear().await.unwrap();
     input.send_keys("4\n").await.unwrap();
     wait_for(&client, "frame 4", SHOWN_FRAME, |v| v["frame"] == "4").await;
-    let png = image::open(renders.join("pool.0004.png")).unwrap().to_rgba8();
-    assert_eq!(max_channel_difference(&shown_pixels(&client).await, &png), 0, "frame 4 is the file's");
+    let png = image::open(renders.join("pool.0004.png"))
+        .unwrap()
+        .to_rgba8();
+    assert_eq!(
+        max_channel_difference(&shown_pixels(&client).await, &png),
+        0,
+        "frame 4 is the file's"
+    );
 
     // Decoded ahead of the playhead: frames 5 to 8 are in memory without being asked for.
     let cached = |frame: u32| {
-        let response = snell::preview::client::get(&url, &format!("/api/frame/{frame}.json?method=equal-t")).unwrap();
+        let response =
+            snell::preview::client::get(&url, &format!("/api/frame/{frame}.json?method=equal-t"))
+                .unwrap();
         assert_eq!(response.status, 200);
         response.header("x-snell-cache").unwrap_or("").to_string()
     };
     let deadline = Instant::now() + Duration::from_secs(60);
     loop {
-        let scene = snell::preview::client::get(&url, "/api/scene").unwrap().json().unwrap();
+        let scene = snell::preview::client::get(&url, "/api/scene")
+            .unwrap()
+            .json()
+            .unwrap();
         if scene["worker_busy"] == false {
             break;
         }
@@ -707,7 +810,11 @@ async fn a_folder_of_exrs_plays_back_and_inspects_in_headless_chromium() {
         std::thread::sleep(Duration::from_millis(50));
     }
     for frame in 5..=8 {
-        assert_eq!(cached(frame), "frame", "frame {frame} should have been decoded ahead");
+        assert_eq!(
+            cached(frame),
+            "frame",
+            "frame {frame} should have been decoded ahead"
+        );
     }
 
     // The inspector: the file's values, and the error against the reference folder's P.
@@ -718,21 +825,32 @@ async fn a_folder_of_exrs_plays_back_and_inspects_in_headless_chromium() {
     let (x, y) = pixel_through_water(&exr);
     let mut shown = hover_pixel(&client, x, y, 4).await;
     assert_inspector_equals_exr(&shown, &exr, x, y);
-    let reference_exr = snell::output::exr::read_channels(&reference.join("pool.0004.exr")).unwrap();
+    let reference_exr =
+        snell::output::exr::read_channels(&reference.join("pool.0004.exr")).unwrap();
     let file = snell::output::exr::read_channels(&exr).unwrap();
     let index = y as usize * file.width + x as usize;
     let distance: f64 = ["P.X", "P.Y", "P.Z"]
         .iter()
-        .map(|c| (file.get(c).unwrap()[index] as f64 - reference_exr.get(c).unwrap()[index] as f64).powi(2))
+        .map(|c| {
+            (file.get(c).unwrap()[index] as f64 - reference_exr.get(c).unwrap()[index] as f64)
+                .powi(2)
+        })
         .sum::<f64>()
         .sqrt();
     // The reference is read on the first hover; hover again until the error is shown.
     let deadline = Instant::now() + Duration::from_secs(60);
     while !shown["error"].ends_with("mm") && !shown["error"].contains("mm (") {
-        assert!(Instant::now() < deadline, "no position error shown: {:?}", shown["error"]);
+        assert!(
+            Instant::now() < deadline,
+            "no position error shown: {:?}",
+            shown["error"]
+        );
         tokio::time::sleep(Duration::from_millis(200)).await;
         let error = client
-            .execute("return document.getElementById('inspector').dataset.error;", vec![])
+            .execute(
+                "return document.getElementById('inspector').dataset.error;",
+                vec![],
+            )
             .await
             .unwrap();
         if error.as_str().is_some_and(|e| !e.is_empty()) {
@@ -751,33 +869,82 @@ async fn a_folder_of_exrs_plays_back_and_inspects_in_headless_chromium() {
         field.clear().await.unwrap();
         field.send_keys(value).await.unwrap();
     }
-    client.find(Locator::Css("#loop")).await.unwrap().click().await.unwrap();
-    client.execute("document.activeElement.blur();", vec![]).await.unwrap();
+    client
+        .find(Locator::Css("#loop"))
+        .await
+        .unwrap()
+        .click()
+        .await
+        .unwrap();
+    client
+        .execute("document.activeElement.blur();", vec![])
+        .await
+        .unwrap();
     let current = "return Number(document.getElementById('slider').value);";
     press(&client, 'l').await;
     let mut seen = std::collections::BTreeSet::new();
     let started = Instant::now();
     while started.elapsed() < Duration::from_millis(1500) {
-        seen.insert(client.execute(current, vec![]).await.unwrap().as_u64().unwrap());
+        seen.insert(
+            client
+                .execute(current, vec![])
+                .await
+                .unwrap()
+                .as_u64()
+                .unwrap(),
+        );
         tokio::time::sleep(Duration::from_millis(15)).await;
     }
-    assert!(seen.contains(&2) && seen.contains(&3), "L plays through the loop range: saw {seen:?}");
-    assert!(seen.iter().all(|f| (2..=4).contains(f)), "only the loop range (and where it started, 4): saw {seen:?}");
+    assert!(
+        seen.contains(&2) && seen.contains(&3),
+        "L plays through the loop range: saw {seen:?}"
+    );
+    assert!(
+        seen.iter().all(|f| (2..=4).contains(f)),
+        "only the loop range (and where it started, 4): saw {seen:?}"
+    );
     press(&client, 'l').await;
-    let shuttle = client.find(Locator::Css("#shuttle")).await.unwrap().text().await.unwrap();
-    assert!(shuttle.contains('2'), "L again doubles the speed: {shuttle:?}");
+    let shuttle = client
+        .find(Locator::Css("#shuttle"))
+        .await
+        .unwrap()
+        .text()
+        .await
+        .unwrap();
+    assert!(
+        shuttle.contains('2'),
+        "L again doubles the speed: {shuttle:?}"
+    );
     press(&client, 'k').await;
     let stopped = client.execute(current, vec![]).await.unwrap();
     tokio::time::sleep(Duration::from_millis(400)).await;
-    assert_eq!(client.execute(current, vec![]).await.unwrap(), stopped, "K stops");
-    client.find(Locator::Css("#loop")).await.unwrap().click().await.unwrap();
-    client.execute("document.activeElement.blur();", vec![]).await.unwrap();
+    assert_eq!(
+        client.execute(current, vec![]).await.unwrap(),
+        stopped,
+        "K stops"
+    );
+    client
+        .find(Locator::Css("#loop"))
+        .await
+        .unwrap()
+        .click()
+        .await
+        .unwrap();
+    client
+        .execute("document.activeElement.blur();", vec![])
+        .await
+        .unwrap();
     press(&client, 'j').await;
     let start = stopped.as_u64().unwrap();
     let mut backwards = false;
     let started = Instant::now();
     while started.elapsed() < Duration::from_millis(1500) && !backwards {
-        let now = client.execute(current, vec![]).await.unwrap().as_u64().unwrap();
+        let now = client
+            .execute(current, vec![])
+            .await
+            .unwrap()
+            .as_u64()
+            .unwrap();
         backwards = now == start.wrapping_sub(1) || (start == 1 && now == 8);
         tokio::time::sleep(Duration::from_millis(15)).await;
     }

@@ -129,11 +129,18 @@ fn stability_of_tiny_measures_every_frame_and_method() {
     assert_eq!(oracle.len(), 3);
     for (share, row) in oracle.iter().zip(rows.iter().step_by(2)) {
         assert_eq!(share["frame"], row["frame"]);
-        assert_eq!(share["under_water_vertices"], row["under_water_vertices"], "{share:?}");
+        assert_eq!(
+            share["under_water_vertices"], row["under_water_vertices"],
+            "{share:?}"
+        );
         assert_eq!(share["sampled"], share["under_water_vertices"], "{share:?}");
         let fraction = number(share, "multi_image_fraction");
         assert!((0.0..=1.0).contains(&fraction), "{share:?}");
-        assert_eq!(number(row, "oracle_multi_image_fraction"), fraction, "{row:?}");
+        assert_eq!(
+            number(row, "oracle_multi_image_fraction"),
+            fraction,
+            "{row:?}"
+        );
     }
 
     let summary = std::fs::read_to_string(out.join(SUMMARY_FILE_NAME)).unwrap();
@@ -180,7 +187,10 @@ fn stability_oracle_only_reports_the_multi_image_share_per_frame() {
         dir.path(),
     );
     let (stdout, stderr) = (text_of(&output.stdout), text_of(&output.stderr));
-    assert!(output.status.success(), "stdout:\n{stdout}\nstderr:\n{stderr}");
+    assert!(
+        output.status.success(),
+        "stdout:\n{stdout}\nstderr:\n{stderr}"
+    );
     let csv = std::fs::read_to_string(out.join(ORACLE_CSV_FILE_NAME)).unwrap();
     assert_eq!(csv.lines().next().unwrap(), ORACLE_CSV_HEADER);
     let rows = rows_of(&csv);
@@ -190,8 +200,15 @@ fn stability_oracle_only_reports_the_multi_image_share_per_frame() {
     );
     for row in &rows {
         let (sampled, total) = (number(row, "sampled"), number(row, "under_water_vertices"));
-        assert!(sampled <= 50.0 && sampled >= 25.0 && total > sampled, "{row:?}");
-        assert_eq!(number(row, "certain") + number(row, "uncertain"), sampled, "{row:?}");
+        assert!(
+            sampled <= 50.0 && sampled >= 25.0 && total > sampled,
+            "{row:?}"
+        );
+        assert_eq!(
+            number(row, "certain") + number(row, "uncertain"),
+            sampled,
+            "{row:?}"
+        );
         let (low, p, high) = (
             number(row, "fraction_low95"),
             number(row, "multi_image_fraction"),
@@ -199,10 +216,16 @@ fn stability_oracle_only_reports_the_multi_image_share_per_frame() {
         );
         assert!(low <= p && p <= high && high - low > 0.0, "{row:?}");
     }
-    assert!(!out.join(CSV_FILE_NAME).exists(), "no renders, no method rows");
+    assert!(
+        !out.join(CSV_FILE_NAME).exists(),
+        "no renders, no method rows"
+    );
     let summary = std::fs::read_to_string(out.join(SUMMARY_FILE_NAME)).unwrap();
     assert!(stdout.contains(&summary));
-    for needle in ["two or more images by the oracle: lowest", "systematic sample of"] {
+    for needle in [
+        "two or more images by the oracle: lowest",
+        "systematic sample of",
+    ] {
         assert!(summary.contains(needle), "{needle:?} in\n{summary}");
     }
 }

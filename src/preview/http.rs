@@ -440,14 +440,21 @@ fn frame(shared: &Shared, rest: &str, params: &Query) -> Reply {
         return reply;
     }
     let other = match against {
-        Some(against) => match wait_for_frame(shared, FrameKey { source: against, ..key }) {
+        Some(against) => match wait_for_frame(
+            shared,
+            FrameKey {
+                source: against,
+                ..key
+            },
+        ) {
             Ok((other, _)) => Some(other),
             Err(reply) => return reply,
         },
         None => None,
     };
     let drawn = match &other {
-        Some(other) => layers::difference_image(&cached, other, layer).map(|(image, legend)| (encode(&image), legend)),
+        Some(other) => layers::difference_image(&cached, other, layer)
+            .map(|(image, legend)| (encode(&image), legend)),
         None if layer == Layer::Beauty => Some((
             encode_png(&cached, exposure_stops, overlay_bits),
             format!("beauty: tone-mapped at {exposure_stops:+.2} EV"),
@@ -466,7 +473,11 @@ fn frame(shared: &Shared, rest: &str, params: &Query) -> Reply {
                 "frame {frame} of {} has no {} layer{}",
                 params_name(shared, source),
                 layer.name(),
-                if other.is_some() { " to compare (or the two frames differ in size)" } else { "" }
+                if other.is_some() {
+                    " to compare (or the two frames differ in size)"
+                } else {
+                    ""
+                }
             ),
         );
     };
@@ -502,7 +513,10 @@ fn pixel(shared: &Shared, number: &str, params: &Query) -> Reply {
             Some(Ok(value)) if value < size => Ok(value),
             _ => Err(Reply::error(
                 400,
-                format!("{name} must be a pixel column or row of the {width}x{height} frame (0 to {})", size - 1),
+                format!(
+                    "{name} must be a pixel column or row of the {width}x{height} frame (0 to {})",
+                    size - 1
+                ),
             )),
         }
     };
@@ -529,10 +543,17 @@ fn pixel(shared: &Shared, number: &str, params: &Query) -> Reply {
         .collect();
     let position = |frame: &CachedFrame| frame.rendered.position.get(index).copied();
     let reference = match shared.reference_source() {
-        None => json!({ "status": "none", "message": "no --frames-dir folder holds the ray-traced reference (snell.method raytrace/exact-surface)" }),
-        Some(reference) if reference == source => json!({ "status": "this is the reference", "method": params_name(shared, reference) }),
+        None => {
+            json!({ "status": "none", "message": "no --frames-dir folder holds the ray-traced reference (snell.method raytrace/exact-surface)" })
+        }
+        Some(reference) if reference == source => {
+            json!({ "status": "this is the reference", "method": params_name(shared, reference) })
+        }
         Some(reference) => {
-            let reference_key = FrameKey { source: reference, ..key };
+            let reference_key = FrameKey {
+                source: reference,
+                ..key
+            };
             let found = shared.lock().frames.get(&reference_key);
             let name = params_name(shared, reference);
             match found {

@@ -95,7 +95,11 @@ fn index_colour(value: u32) -> [u8; 3] {
     h ^= h >> 15;
     h = h.wrapping_mul(0x85EB_CA6B);
     h ^= h >> 13;
-    [(h & 0xff) as u8 | 0x40, ((h >> 8) & 0xff) as u8 | 0x40, ((h >> 16) & 0xff) as u8 | 0x40]
+    [
+        (h & 0xff) as u8 | 0x40,
+        ((h >> 8) & 0xff) as u8 | 0x40,
+        ((h >> 16) & 0xff) as u8 | 0x40,
+    ]
 }
 
 /// The range of `values` (finite ones below the sky's depth); (0, 0) when there are none.
@@ -127,7 +131,11 @@ fn byte(unit: f32) -> u8 {
 /// An image of `layer` of `frame` and a line saying what its greys or colours mean; None when
 /// the frame lacks the layer (a file written with `--layers` that left it out, or a method that
 /// does not make it). The beauty is drawn elsewhere (with the flag overlays).
-pub(super) fn layer_image(frame: &CachedFrame, layer: Layer, exposure_stops: f32) -> Option<(RgbaImage, String)> {
+pub(super) fn layer_image(
+    frame: &CachedFrame,
+    layer: Layer,
+    exposure_stops: f32,
+) -> Option<(RgbaImage, String)> {
     let channels = layer_channels(frame, layer);
     if channels.is_empty() {
         return None;
@@ -157,10 +165,18 @@ pub(super) fn layer_image(frame: &CachedFrame, layer: Layer, exposure_stops: f32
                 };
                 bytes.extend([grey, grey, grey, 255]);
             }
-            legend = format!("{}: {:.3} m (white) to {:.3} m (grey), sky black", layer.name(), span.0, span.1);
+            legend = format!(
+                "{}: {:.3} m (white) to {:.3} m (grey), sky black",
+                layer.name(),
+                span.0,
+                span.1
+            );
         }
         Look::Vector => {
-            let spans: Vec<(f32, f32)> = channels.iter().map(|(_, v)| range(v.iter().copied())).collect();
+            let spans: Vec<(f32, f32)> = channels
+                .iter()
+                .map(|(_, v)| range(v.iter().copied()))
+                .collect();
             for i in 0..pixels {
                 for c in 0..3 {
                     bytes.push(spans.get(c).map_or(0, |&span| byte(unit(get(c, i), span))));
@@ -171,18 +187,27 @@ pub(super) fn layer_image(frame: &CachedFrame, layer: Layer, exposure_stops: f32
                 .iter()
                 .zip(&spans)
                 .zip(["red", "green", "blue"])
-                .map(|(((name, _), span), colour)| format!("{name} {:.3} to {:.3} as {colour}", span.0, span.1))
+                .map(|(((name, _), span), colour)| {
+                    format!("{name} {:.3} to {:.3} as {colour}", span.0, span.1)
+                })
                 .collect::<Vec<_>>()
                 .join(", ");
         }
         Look::Index => {
             for i in 0..pixels {
                 let index = get(0, i) as u32;
-                let rgb = if index == 0 { [0; 3] } else { index_colour(index) };
+                let rgb = if index == 0 {
+                    [0; 3]
+                } else {
+                    index_colour(index)
+                };
                 bytes.extend(rgb);
                 bytes.push(255);
             }
-            legend = format!("{}: a colour per object index, 0 (nothing) black; hover for names", layer.name());
+            legend = format!(
+                "{}: a colour per object index, 0 (nothing) black; hover for names",
+                layer.name()
+            );
         }
         Look::Crypto => {
             for i in 0..pixels {
@@ -205,13 +230,20 @@ pub(super) fn layer_image(frame: &CachedFrame, layer: Layer, exposure_stops: f32
             legend = format!("{}: 0 black, 1 white", layer.name());
         }
     }
-    Some((RgbaImage::from_raw(width, height, bytes).expect("sized to the frame"), legend))
+    Some((
+        RgbaImage::from_raw(width, height, bytes).expect("sized to the frame"),
+        legend,
+    ))
 }
 
 /// The difference of `layer` between `a` and `b`: per pixel the largest absolute difference of
 /// its channels, white at the frame's largest; black where they agree exactly. None when either
 /// frame lacks the layer or their sizes differ.
-pub(super) fn difference_image(a: &CachedFrame, b: &CachedFrame, layer: Layer) -> Option<(RgbaImage, String)> {
+pub(super) fn difference_image(
+    a: &CachedFrame,
+    b: &CachedFrame,
+    layer: Layer,
+) -> Option<(RgbaImage, String)> {
     if (a.rendered.width, a.rendered.height) != (b.rendered.width, b.rendered.height) {
         return None;
     }
@@ -232,12 +264,20 @@ pub(super) fn difference_image(a: &CachedFrame, b: &CachedFrame, layer: Layer) -
                     let d = (va[i] - vb[i]).abs();
                     // Values that differ in kind (a sky value against a surface's) or are not
                     // numbers count as the largest difference.
-                    if d.is_finite() { d } else { f32::MAX }
+                    if d.is_finite() {
+                        d
+                    } else {
+                        f32::MAX
+                    }
                 })
                 .fold(0.0, f32::max)
         })
         .collect();
-    let finite_max = difference.iter().copied().filter(|d| *d < f32::MAX).fold(0.0, f32::max);
+    let finite_max = difference
+        .iter()
+        .copied()
+        .filter(|d| *d < f32::MAX)
+        .fold(0.0, f32::max);
     let differing = difference.iter().filter(|d| **d > 0.0).count();
     let mut bytes = Vec::with_capacity(pixels * 4);
     for &d in &difference {
@@ -256,7 +296,8 @@ pub(super) fn difference_image(a: &CachedFrame, b: &CachedFrame, layer: Layer) -
         layer.name()
     );
     Some((
-        RgbaImage::from_raw(a.rendered.width, a.rendered.height, bytes).expect("sized to the frame"),
+        RgbaImage::from_raw(a.rendered.width, a.rendered.height, bytes)
+            .expect("sized to the frame"),
         legend,
     ))
 }
@@ -265,7 +306,10 @@ pub(super) fn difference_image(a: &CachedFrame, b: &CachedFrame, layer: Layer) -
 pub(super) fn pixel_channels(frame: &CachedFrame, x: u32, y: u32) -> Vec<(String, f32)> {
     if let Some(file) = &frame.file_channels {
         let index = y as usize * frame.rendered.width as usize + x as usize;
-        return file.iter().map(|(name, values)| (name.clone(), values[index])).collect();
+        return file
+            .iter()
+            .map(|(name, values)| (name.clone(), values[index]))
+            .collect();
     }
     crate::output::exr::channel_values(
         &frame.rendered,
@@ -286,13 +330,34 @@ mod tests {
     #[test]
     fn every_written_channel_belongs_to_exactly_one_layer() {
         let names = [
-            "R", "G", "B", "A", "Z", "ApparentDepth.Z", "P.X", "P.Y", "P.Z", "IndexOB.X",
-            "CryptoObject00.R", "CryptoObject00.A", "WaterMatte.X", "Direct.R", "Refraction.B",
-            "SkyReflection.G", "FlagConvergence.X", "FlagBoundary.X", "FlagPopping.X",
-            "FlagExtrapolated.X", "Motion.X", "Motion.Y",
+            "R",
+            "G",
+            "B",
+            "A",
+            "Z",
+            "ApparentDepth.Z",
+            "P.X",
+            "P.Y",
+            "P.Z",
+            "IndexOB.X",
+            "CryptoObject00.R",
+            "CryptoObject00.A",
+            "WaterMatte.X",
+            "Direct.R",
+            "Refraction.B",
+            "SkyReflection.G",
+            "FlagConvergence.X",
+            "FlagBoundary.X",
+            "FlagPopping.X",
+            "FlagExtrapolated.X",
+            "Motion.X",
+            "Motion.Y",
         ];
         for name in names {
-            let owners: Vec<_> = Layer::ALL.into_iter().filter(|&l| in_layer(l, name)).collect();
+            let owners: Vec<_> = Layer::ALL
+                .into_iter()
+                .filter(|&l| in_layer(l, name))
+                .collect();
             assert_eq!(owners.len(), 1, "{name}: {owners:?}");
         }
         assert!(!in_layer(Layer::Position, "Pref.X"));
@@ -302,7 +367,10 @@ mod tests {
 
     #[test]
     fn ranges_leave_out_the_sky_and_non_numbers() {
-        assert_eq!(range([2.0, SKY_DEPTH_M, f32::NAN, 5.0].into_iter()), (2.0, 5.0));
+        assert_eq!(
+            range([2.0, SKY_DEPTH_M, f32::NAN, 5.0].into_iter()),
+            (2.0, 5.0)
+        );
         assert_eq!(range([SKY_DEPTH_M].into_iter()), (0.0, 0.0));
         assert_eq!(unit(3.5, (2.0, 5.0)), 0.5);
     }

@@ -302,16 +302,30 @@ impl Shared {
         if self.folders.is_empty() {
             Method::ALL
                 .iter()
-                .map(|&m| (Source::Method(m), m.name().to_string(), m.description().to_string()))
+                .map(|&m| {
+                    (
+                        Source::Method(m),
+                        m.name().to_string(),
+                        m.description().to_string(),
+                    )
+                })
                 .collect()
         } else {
             self.folders
                 .iter()
                 .enumerate()
                 .map(|(index, folder)| {
-                    let method = folder.method_label.as_deref().unwrap_or("method not recorded");
-                    let description = format!("{} ({} frames, {method})", folder.shown, folder.files.len());
-                    (Source::Folder(index as u8), folder.name.clone(), description)
+                    let method = folder
+                        .method_label
+                        .as_deref()
+                        .unwrap_or("method not recorded");
+                    let description =
+                        format!("{} ({} frames, {method})", folder.shown, folder.files.len());
+                    (
+                        Source::Folder(index as u8),
+                        folder.name.clone(),
+                        description,
+                    )
                 })
                 .collect()
         }
@@ -333,12 +347,16 @@ impl Shared {
         let sources = self.sources();
         match sources.iter().find(|(_, n, _)| n == name) {
             Some((source, _, _)) => Ok(*source),
-            None if self.folders.is_empty() => {
-                Method::parse(name).map(Source::Method).map_err(|error| error.to_string())
-            }
+            None if self.folders.is_empty() => Method::parse(name)
+                .map(Source::Method)
+                .map_err(|error| error.to_string()),
             None => Err(format!(
                 "{name:?} is not a source of this preview; choose one of {}",
-                sources.iter().map(|(_, n, _)| n.as_str()).collect::<Vec<_>>().join(", ")
+                sources
+                    .iter()
+                    .map(|(_, n, _)| n.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", ")
             )),
         }
     }
@@ -392,7 +410,9 @@ impl PreviewServer {
             let taken: Vec<String> = folders.iter().map(|f| f.name.clone()).collect();
             folders.push(source::scan_folder(dir, &taken)?);
         }
-        let (width, height) = folders.first().map_or((options.width, options.height), |f| f.size);
+        let (width, height) = folders
+            .first()
+            .map_or((options.width, options.height), |f| f.size);
         // A frame read from a file keeps the file's channels too (about 30 floats a pixel).
         let bytes_per_pixel = if folders.is_empty() { 40 } else { 160 };
         let frame_bytes = width as usize * height as usize * bytes_per_pixel;
@@ -696,7 +716,10 @@ impl Watcher {
                 state.prefetch.push_back(first);
                 let sources: Vec<Source> = state.strips.keys().copied().collect();
                 state.strips.clear();
-                for source in sources.into_iter().chain([Source::Method(Method::default())]) {
+                for source in sources
+                    .into_iter()
+                    .chain([Source::Method(Method::default())])
+                {
                     worker::want_strip(&mut state, source);
                 }
             }

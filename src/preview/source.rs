@@ -64,8 +64,10 @@ fn frame_number(file_name: &str) -> Option<u32> {
 /// Lists `dir`'s frames and reads its first frame's header; an error names the folder and what
 /// is wrong (not a folder, no frames, two files of one frame number).
 pub(super) fn scan_folder(dir: &Path, taken: &[String]) -> Result<Folder, SnellError> {
-    let problem = |what: String| SnellError::Argument(format!("--frames-dir {}: {what}", dir.display()));
-    let entries = std::fs::read_dir(dir).map_err(|error| problem(format!("cannot list it: {error}")))?;
+    let problem =
+        |what: String| SnellError::Argument(format!("--frames-dir {}: {what}", dir.display()));
+    let entries =
+        std::fs::read_dir(dir).map_err(|error| problem(format!("cannot list it: {error}")))?;
     let mut files: BTreeMap<u32, PathBuf> = BTreeMap::new();
     for entry in entries {
         let entry = entry.map_err(|error| problem(format!("cannot list it: {error}")))?;
@@ -78,7 +80,11 @@ pub(super) fn scan_folder(dir: &Path, taken: &[String]) -> Result<Folder, SnellE
         }
         let path = entry.path();
         if let Some(other) = files.insert(number, path.clone()) {
-            let (a, b) = if other < path { (other, path) } else { (path, other) };
+            let (a, b) = if other < path {
+                (other, path)
+            } else {
+                (path, other)
+            };
             return Err(problem(format!(
                 "two files hold frame {number}: {} and {}; give a folder with one render",
                 a.display(),
@@ -91,8 +97,12 @@ pub(super) fn scan_folder(dir: &Path, taken: &[String]) -> Result<Folder, SnellE
             "no EXR frames in it (files named like pool.0001.exr, with the frame number before .exr)".into(),
         ));
     };
-    let meta = ::exr::meta::MetaData::read_from_file(first, false)
-        .map_err(|error| problem(format!("{}: not a readable EXR file: {error}", first.display())))?;
+    let meta = ::exr::meta::MetaData::read_from_file(first, false).map_err(|error| {
+        problem(format!(
+            "{}: not a readable EXR file: {error}",
+            first.display()
+        ))
+    })?;
     let attribute = |name: &str| {
         meta.headers.first().and_then(|header| {
             header
@@ -109,20 +119,27 @@ pub(super) fn scan_folder(dir: &Path, taken: &[String]) -> Result<Folder, SnellE
         _ => None,
     };
     let fps = match attribute("framesPerSecond") {
-        Some(AttributeValue::Rational((numerator, denominator))) if denominator > 0 && numerator > 0 => {
+        Some(AttributeValue::Rational((numerator, denominator)))
+            if denominator > 0 && numerator > 0 =>
+        {
             Some(numerator as f64 / denominator as f64)
         }
         _ => None,
     };
-    let size = meta
-        .headers
-        .first()
-        .map_or((0, 0), |header| (header.layer_size.width() as u32, header.layer_size.height() as u32));
+    let size = meta.headers.first().map_or((0, 0), |header| {
+        (
+            header.layer_size.width() as u32,
+            header.layer_size.height() as u32,
+        )
+    });
     let base = dir
         .canonicalize()
         .unwrap_or_else(|_| dir.to_path_buf())
         .file_name()
-        .map_or_else(|| "frames".to_string(), |n| n.to_string_lossy().into_owned());
+        .map_or_else(
+            || "frames".to_string(),
+            |n| n.to_string_lossy().into_owned(),
+        );
     let mut name = base.clone();
     let mut count = 2;
     while taken.contains(&name) {

@@ -191,7 +191,9 @@ fn next_task(shared: &Shared, worker: &mut Worker) -> Option<Task> {
             worker.cursors.clear();
         }
         let reading_files = !shared.folders.is_empty();
-        if reading_files || (worker.loaded.job.is_some() && worker.loaded.generation == state.generation) {
+        if reading_files
+            || (worker.loaded.job.is_some() && worker.loaded.generation == state.generation)
+        {
             let mut task = None;
             while let Some(key) = state.demand.pop_front() {
                 if is_wanted(&state, key) {
@@ -340,7 +342,11 @@ impl Worker<'_> {
             None => self.previous_tracking(shared, key)?,
         };
         let (width, height) = (shared.width, shared.height);
-        let job = self.job_for(key.source.method().expect("strips of rendered sources only"));
+        let job = self.job_for(
+            key.source
+                .method()
+                .expect("strips of rendered sources only"),
+        );
         let result = job.refract(key.frame, width, height, previous.as_deref());
         let cursor = self
             .cursors
@@ -372,10 +378,16 @@ fn decode(shared: &Shared, index: u8, frame: u32) -> Result<CachedFrame, SnellEr
     let (rendered, meta) = crate::output::exr::read_frame_exr(path).map_err(SnellError::Output)?;
     let file = crate::output::exr::read_channels(path).map_err(SnellError::Output)?;
     // In the file's order (the reader sorts by name): the order the writer gives them.
-    let order: Vec<String> = crate::output::exr::channel_values(&rendered, &meta.object_names, &meta.write, 0..0, |_| true)
-        .into_iter()
-        .map(|(name, _)| name)
-        .collect();
+    let order: Vec<String> = crate::output::exr::channel_values(
+        &rendered,
+        &meta.object_names,
+        &meta.write,
+        0..0,
+        |_| true,
+    )
+    .into_iter()
+    .map(|(name, _)| name)
+    .collect();
     let mut channels: Vec<(String, Vec<f32>)> = file.channels.into_iter().collect();
     channels.sort_by_key(|(name, _)| order.iter().position(|n| n == name).unwrap_or(usize::MAX));
     let mut stage_secs = std::collections::BTreeMap::new();

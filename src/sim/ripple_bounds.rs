@@ -221,7 +221,11 @@ mod tests {
                     curvature = curvature.max(second.abs());
                 }
             }
-            assert!(height <= b.reach_m, "case {case}: |h| {height} > {}", b.reach_m);
+            assert!(
+                height <= b.reach_m,
+                "case {case}: |h| {height} > {}",
+                b.reach_m
+            );
             assert!(slope <= b.slope, "case {case}: slope {slope} > {}", b.slope);
             assert!(
                 curvature <= b.curvature_per_m * 1.001 + 1e-3,
@@ -242,9 +246,18 @@ mod tests {
         );
         // The formula's own slack (the sums of |weights|) is the global bound's too: the slope
         // bound comes within 8x of a sampled slope somewhere; the curvature's sums are looser.
-        assert!(tightest_slope < 8.0, "slope bounds loose: {tightest_slope}x");
-        assert!(tightest_curvature < 40.0, "curvature bounds loose: {tightest_curvature}x");
-        assert!(local_boxes > 30, "only {local_boxes} boxes had local bounds");
+        assert!(
+            tightest_slope < 8.0,
+            "slope bounds loose: {tightest_slope}x"
+        );
+        assert!(
+            tightest_curvature < 40.0,
+            "curvature bounds loose: {tightest_curvature}x"
+        );
+        assert!(
+            local_boxes > 30,
+            "only {local_boxes} boxes had local bounds"
+        );
         // A box outside the grid sees no ripples; the whole grid's box gets the global bounds.
         assert_eq!(bounds.over(5.0, 5.0, 6.0, 6.0).slope, 0.0);
         let whole = bounds.over(-2.0, -2.0, 2.0, 2.0);
@@ -278,7 +291,10 @@ mod tests {
                 let x = s.min_x + (cx as f64 + 0.5) * s.spacing_m;
                 let z = s.min_z + (cz as f64 + 0.5) * s.spacing_m;
                 let tile = bounds.node_height_over(x, z, x, z);
-                assert!(tile >= largest as f64, "cell ({cx}, {cz}): {tile} < {largest}");
+                assert!(
+                    tile >= largest as f64,
+                    "cell ({cx}, {cz}): {tile} < {largest}"
+                );
             }
         }
     }

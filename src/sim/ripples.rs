@@ -282,7 +282,11 @@ impl RippleField<'_> {
     /// Largest |height| of the field, metres (the nodes': Catmull-Rom overshoots them by at most
     /// a quarter, see [`bounds_for_node_height`]).
     pub fn max_abs_height_m(&self) -> f64 {
-        bounds_for_node_height(self.state.max_abs_height_m() as f64, self.state.settings.spacing_m).0
+        bounds_for_node_height(
+            self.state.max_abs_height_m() as f64,
+            self.state.settings.spacing_m,
+        )
+        .0
     }
 
     /// Bounds over the whole plane: the largest |grad h| and the largest second directional

@@ -348,11 +348,11 @@ impl StabilityOutcome {
     /// The summary's oracle part: the frame with the lowest multi-image share (a hard scene must
     /// stay hard in each frame), with its interval, and the mean.
     fn oracle_summary(&self, text: &mut String) {
-        let Some(lowest) = self
-            .oracle
-            .iter()
-            .min_by(|a, b| a.fraction().total_cmp(&b.fraction()).then(a.frame.cmp(&b.frame)))
-        else {
+        let Some(lowest) = self.oracle.iter().min_by(|a, b| {
+            a.fraction()
+                .total_cmp(&b.fraction())
+                .then(a.frame.cmp(&b.frame))
+        }) else {
             return;
         };
         let mean =

@@ -112,7 +112,10 @@ pub fn oracle_share(
         curvature_bound: surface.curvature_bound,
         n_above: job.scene.water.n_above,
         n_below: job.scene.water.n_below,
-        local_bounds: surface.local_bounds.is_some().then_some(&surface as &dyn LocalBounds),
+        local_bounds: surface
+            .local_bounds
+            .is_some()
+            .then_some(&surface as &dyn LocalBounds),
     };
     let stride = if max_samples == 0 {
         1

@@ -437,11 +437,12 @@ pub fn channel_values(
                 bytes.clear();
                 (channel.fill)(y, &mut bytes);
                 match channel.sample_type {
-                    ::exr::meta::attribute::SampleType::F16 => values.extend(
-                        bytes.chunks_exact(2).map(|b| {
-                            ::exr::prelude::f16::from_bits(u16::from_ne_bytes([b[0], b[1]])).to_f32()
-                        }),
-                    ),
+                    ::exr::meta::attribute::SampleType::F16 => {
+                        values.extend(bytes.chunks_exact(2).map(|b| {
+                            ::exr::prelude::f16::from_bits(u16::from_ne_bytes([b[0], b[1]]))
+                                .to_f32()
+                        }))
+                    }
                     _ => values.extend(
                         bytes
                             .chunks_exact(4)
