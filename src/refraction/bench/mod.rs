@@ -319,6 +319,57 @@ mod tests {
         assert!(figures.pool_images > 50_000, "most pool vertices are seen");
     }
 
+    /// The accelerated search equals brute force at pool scale, in CI: the bench's pool scenario
+    /// (a 16 m pool under a 256 x 256-cell membrane, 131,072 facets, four waves, a swimmer's eye)
+    /// with every 401st of its 100,000 vertices (250: floor, walls, the sphere and the box), each
+    /// answered by the search structure and by testing every cell. Reduced from the bench's
+    /// 100,000 only so that brute force fits in the test suite.
+    #[test]
+    fn pool_scale_accelerated_search_equals_brute_force() {
+        let (surface, membrane, points, setup) = pool_scenario();
+        let water = exact(&surface, &membrane);
+        let field = RefractionField::build(&membrane, &water, setup, (-2.0, 0.0));
+        let sample: Vec<Vec3> = points.iter().copied().step_by(401).collect();
+        assert_eq!(sample.len(), 250);
+        let (seen, multi, mismatched): (usize, usize, Vec<Vec3>) = sample
+            .par_iter()
+            .map_init(
+                || (Vec::new(), Vec::new()),
+                |(fast, slow), &p| {
+                    field.images(p, fast);
+                    field.images_brute_force(p, slow);
+                    let mismatch = (fast != slow).then_some(p);
+                    (
+                        (!slow.is_empty()) as usize,
+                        (slow.len() > 1) as usize,
+                        mismatch,
+                    )
+                },
+            )
+            .fold(
+                || (0, 0, Vec::new()),
+                |(a, b, mut m), (s, n, x)| {
+                    m.extend(x);
+                    (a + s, b + n, m)
+                },
+            )
+            .reduce(
+                || (0, 0, Vec::new()),
+                |(a, b, mut m), (s, n, x)| {
+                    m.extend(x);
+                    (a + s, b + n, m)
+                },
+            );
+        assert!(
+            mismatched.is_empty(),
+            "{} vertices differ, e.g. {:?}",
+            mismatched.len(),
+            &mismatched[..mismatched.len().min(5)]
+        );
+        assert!(seen > 150, "only {seen} of 250 vertices are seen");
+        eprintln!("pool scale: {seen} of 250 vertices seen, {multi} with several images");
+    }
+
     #[test]
     #[ignore = "tuning aid"]
     fn pool_search_work() {
