@@ -196,7 +196,7 @@ fn max_channel_difference(a: &image::RgbaImage, b: &image::RgbaImage) -> u8 {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn preview_page_in_headless_chromium() {
-    let _one = one_browser();
+    let _one = one_browser().await;
     let temp = tempfile::tempdir().unwrap();
     let scene: PathBuf = temp.path().join("pool.toml");
     let original =
@@ -353,13 +353,13 @@ fn save(path: &Path, contents: impl AsRef<[u8]>) {
     std::fs::rename(&temporary, path).unwrap();
 }
 
-/// The browser tests share two cores: one at a time.
-static ONE_BROWSER: std::sync::Mutex<()> = std::sync::Mutex::new(());
+/// The browser tests share two cores: one at a time. Each test holds the guard across its awaits
+/// (the whole test), so the lock is tokio's, which a waiting test awaits without blocking a
+/// worker thread; it is not poisoned by a failed test, so the next one still runs.
+static ONE_BROWSER: tokio::sync::Mutex<()> = tokio::sync::Mutex::const_new(());
 
-fn one_browser() -> std::sync::MutexGuard<'static, ()> {
-    ONE_BROWSER
-        .lock()
-        .unwrap_or_else(|poisoned| poisoned.into_inner())
+async fn one_browser() -> tokio::sync::MutexGuard<'static, ()> {
+    ONE_BROWSER.lock().await
 }
 
 /// `snell render` of `frames` at `size` with `extra` arguments into `out` (EXR, and PNG).
@@ -555,7 +555,7 @@ const ON_TOP: &str = "const box = document.getElementById('viewport').getBoundin
 /// (1:1, fit, zoom in), a layer as an image, and the inspector against `snell render`'s EXR.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn compare_zoom_layers_and_inspector_in_headless_chromium() {
-    let _one = one_browser();
+    let _one = one_browser().await;
     let temp = tempfile::tempdir().unwrap();
     // tiny.toml, not pool.toml: B is thesis-plane, whose refraction enumerates every image over
     // every membrane facet; a pool.toml frame costs it 53 s on 2 cores (twice over in the preview,
@@ -733,7 +733,7 @@ async fn compare_zoom_layers_and_inspector_in_headless_chromium() {
 /// and the position error against a folder of the ray-traced reference).
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_folder_of_exrs_plays_back_and_inspects_in_headless_chromium() {
-    let _one = one_browser();
+    let _one = one_browser().await;
     let temp = tempfile::tempdir().unwrap();
     let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/pool.toml");
     let size = "320x180";

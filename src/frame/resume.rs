@@ -431,7 +431,7 @@ impl RenderJob {
                                 if let Some(start) = start.take() {
                                     send(ToWriter::Start(start))?;
                                 }
-                                send(ToWriter::Strip(first_row, strip))
+                                send(ToWriter::Strip(first_row, Box::new(strip)))
                             },
                         )?;
                         send(ToWriter::Done(Box::new(

@@ -22,8 +22,9 @@ use crate::output::Unsynced;
 pub(super) enum ToWriter {
     /// A frame begins: where it goes and what its header says.
     Start(Box<FrameStart>),
-    /// The frame's next strip: the row it starts at, and its layers.
-    Strip(u32, RenderedFrame),
+    /// The frame's next strip: the row it starts at, and its layers (boxed: a RenderedFrame holds
+    /// a vector per layer, and unboxed every Start and Done message in the queue would be as large).
+    Strip(u32, Box<RenderedFrame>),
     /// The frame's last strip was sent: its report row (render time filled in).
     Done(Box<crate::output::report::FrameReport>),
 }
@@ -151,7 +152,7 @@ fn encode_each(
                             let bytes: &mut [u8] = png;
                             bytes[at..at + rows.len()].copy_from_slice(&rows);
                         }
-                        Ok(Some((first_row, std::borrow::Cow::Owned(strip))))
+                        Ok(Some((first_row, std::borrow::Cow::Owned(*strip))))
                     }
                     Some(ToWriter::Done(row)) => {
                         done = Some(row);

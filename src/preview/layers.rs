@@ -144,15 +144,14 @@ pub(super) fn layer_image(
     let pixels = width as usize * height as usize;
     let get = |c: usize, i: usize| channels.get(c).map_or(0.0, |(_, v)| v[i]);
     let mut bytes = Vec::with_capacity(pixels * 4);
-    let legend;
-    match look(layer) {
+    let legend = match look(layer) {
         Look::Colour => {
             let scale = exposure_stops.exp2();
             for i in 0..pixels {
                 bytes.extend(display_srgb8([get(0, i), get(1, i), get(2, i)], scale));
                 bytes.push(255);
             }
-            legend = format!("{}: tone-mapped at {exposure_stops:+.2} EV", layer.name());
+            format!("{}: tone-mapped at {exposure_stops:+.2} EV", layer.name())
         }
         Look::Depth => {
             let span = range(channels[0].1.iter().copied());
@@ -165,12 +164,12 @@ pub(super) fn layer_image(
                 };
                 bytes.extend([grey, grey, grey, 255]);
             }
-            legend = format!(
+            format!(
                 "{}: {:.3} m (white) to {:.3} m (grey), sky black",
                 layer.name(),
                 span.0,
                 span.1
-            );
+            )
         }
         Look::Vector => {
             let spans: Vec<(f32, f32)> = channels
@@ -183,7 +182,7 @@ pub(super) fn layer_image(
                 }
                 bytes.push(255);
             }
-            legend = channels
+            channels
                 .iter()
                 .zip(&spans)
                 .zip(["red", "green", "blue"])
@@ -191,7 +190,7 @@ pub(super) fn layer_image(
                     format!("{name} {:.3} to {:.3} as {colour}", span.0, span.1)
                 })
                 .collect::<Vec<_>>()
-                .join(", ");
+                .join(", ")
         }
         Look::Index => {
             for i in 0..pixels {
@@ -204,10 +203,10 @@ pub(super) fn layer_image(
                 bytes.extend(rgb);
                 bytes.push(255);
             }
-            legend = format!(
+            format!(
                 "{}: a colour per object index, 0 (nothing) black; hover for names",
                 layer.name()
-            );
+            )
         }
         Look::Crypto => {
             for i in 0..pixels {
@@ -220,16 +219,16 @@ pub(super) fn layer_image(
                 bytes.extend(rgb);
                 bytes.push(255);
             }
-            legend = "CryptoObject00: rank 0's ID as a colour, times its coverage".to_string();
+            "CryptoObject00: rank 0's ID as a colour, times its coverage".to_string()
         }
         Look::Mask => {
             for i in 0..pixels {
                 let grey = byte(get(0, i));
                 bytes.extend([grey, grey, grey, 255]);
             }
-            legend = format!("{}: 0 black, 1 white", layer.name());
+            format!("{}: 0 black, 1 white", layer.name())
         }
-    }
+    };
     Some((
         RgbaImage::from_raw(width, height, bytes).expect("sized to the frame"),
         legend,

@@ -110,7 +110,7 @@ pub(super) fn scan_folder(dir: &Path, taken: &[String]) -> Result<Folder, SnellE
                 .other
                 .iter()
                 .chain(header.shared_attributes.other.iter())
-                .find(|(key, _)| key.to_string() == name)
+                .find(|(key, _)| **key == *name)
                 .map(|(_, value)| value.clone())
         })
     };

@@ -375,8 +375,8 @@ fn decode(shared: &Shared, index: u8, frame: u32) -> Result<CachedFrame, SnellEr
         )));
     };
     let started = std::time::Instant::now();
-    let (rendered, meta) = crate::output::exr::read_frame_exr(path).map_err(SnellError::Output)?;
-    let file = crate::output::exr::read_channels(path).map_err(SnellError::Output)?;
+    let (rendered, meta, file) =
+        crate::output::exr::read_frame_and_channels(path).map_err(SnellError::Output)?;
     // In the file's order (the reader sorts by name): the order the writer gives them.
     let order: Vec<String> = crate::output::exr::channel_values(
         &rendered,

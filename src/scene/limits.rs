@@ -73,6 +73,11 @@ const fn above(
     }
 }
 
+/// An sRGB colour component: 0 to 1 (brightness comes from the intensity keys).
+const fn srgb(key: &'static str, example: &'static str) -> KeyRange {
+    closed(key, 0.0, 1.0, "sRGB", example)
+}
+
 const fn whole(key: &'static str, min: f64, max: f64, example: &'static str) -> KeyRange {
     KeyRange {
         integer: true,
@@ -120,13 +125,7 @@ pub const KEY_RANGES: &[KeyRange] = &[
         "1/m",
         "[0.45, 0.07, 0.03]",
     ),
-    closed(
-        "water.scatter_color[]",
-        0.0,
-        1.0,
-        "sRGB",
-        "[0.05, 0.30, 0.40]",
-    ),
+    srgb("water.scatter_color[]", "[0.05, 0.30, 0.40]"),
     closed("water.wave[].amplitude_m", 0.0, 10.0, "m", "0.02"),
     closed("water.wave[].wavelength_m", 0.01, 10000.0, "m", "2.0"),
     closed(
@@ -159,26 +158,14 @@ pub const KEY_RANGES: &[KeyRange] = &[
     closed("water.ripples.sponge_width_m", 0.0, W, "m", "0.5"),
     closed("water.ripples.strength", 0.0, 100.0, "", "1.0"),
     above("water.ripples.coupling_depth_m", 0.0, 10.0, "m", "0.1"),
-    closed("sky.zenith_color[]", 0.0, 1.0, "sRGB", "[0.30, 0.50, 0.85]"),
-    closed(
-        "sky.horizon_color[]",
-        0.0,
-        1.0,
-        "sRGB",
-        "[0.78, 0.86, 0.95]",
-    ),
-    closed(
-        "sky.ambient_color[]",
-        0.0,
-        1.0,
-        "sRGB",
-        "[0.60, 0.70, 0.85]",
-    ),
+    srgb("sky.zenith_color[]", "[0.30, 0.50, 0.85]"),
+    srgb("sky.horizon_color[]", "[0.78, 0.86, 0.95]"),
+    srgb("sky.ambient_color[]", "[0.60, 0.70, 0.85]"),
     closed("sky.ambient_intensity", 0.0, 1000.0, "", "0.3"),
     closed("sun.azimuth_deg", -TURNS_DEG, TURNS_DEG, "deg", "135"),
     above("sun.elevation_deg", 0.0, 90.0, "deg", "55"),
     closed("sun.direction[]", -W, W, "", "[0.4, 0.8, 0.4]"),
-    closed("sun.color[]", 0.0, 1.0, "sRGB", "[1.0, 0.97, 0.90]"),
+    srgb("sun.color[]", "[1.0, 0.97, 0.90]"),
     closed("sun.intensity", 0.0, 1000.0, "", "1.0"),
     above("sun.size_deg", 0.0, 45.0, "deg", "0.53"),
     closed("object[].size_m[]", 0.001, 2.0 * W, "m", "[1.0, 0.5, 0.8]"),
@@ -196,49 +183,19 @@ pub const KEY_RANGES: &[KeyRange] = &[
     ),
     closed("object[].scale[]", 0.001, 1000.0, "", "[1.0, 1.0, 1.0]"),
     closed("object[].max_edge_m", 0.01, 100.0, "m", "0.1"),
-    closed("object[].tint[]", 0.0, 1.0, "sRGB", "[1.0, 1.0, 1.0]"),
-    closed(
-        "object[].texture.color[]",
-        0.0,
-        1.0,
-        "sRGB",
-        "[0.8, 0.8, 0.8]",
-    ),
-    closed(
-        "object[].texture.color_b[]",
-        0.0,
-        1.0,
-        "sRGB",
-        "[0.15, 0.15, 0.15]",
-    ),
+    srgb("object[].tint[]", "[1.0, 1.0, 1.0]"),
+    srgb("object[].texture.color[]", "[0.8, 0.8, 0.8]"),
+    srgb("object[].texture.color_b[]", "[0.15, 0.15, 0.15]"),
     closed("object[].texture.square_m", 0.001, 1000.0, "m", "0.5"),
     closed("object[].texture.tile_size_m", 0.001, 1000.0, "m", "0.125"),
     closed("object[].texture.grout_width_m", 0.0, 1000.0, "m", "0.004"),
-    closed(
-        "object[].texture.grout_color[]",
-        0.0,
-        1.0,
-        "sRGB",
-        "[0.62, 0.66, 0.68]",
-    ),
+    srgb("object[].texture.grout_color[]", "[0.62, 0.66, 0.68]"),
     closed("object[].texture.variation", 0.0, 1.0, "", "0.04"),
-    closed(
-        "object[].texture.accent_color[]",
-        0.0,
-        1.0,
-        "sRGB",
-        "[0.72, 0.87, 0.96]",
-    ),
+    srgb("object[].texture.accent_color[]", "[0.72, 0.87, 0.96]"),
     closed("object[].texture.accent_fraction", 0.0, 1.0, "", "0.15"),
     closed("object[].texture.lane_spacing_m", 0.0, 1000.0, "m", "2.5"),
     closed("object[].texture.lane_width_m", 0.0, 1000.0, "m", "0.25"),
-    closed(
-        "object[].texture.lane_color[]",
-        0.0,
-        1.0,
-        "sRGB",
-        "[0.04, 0.10, 0.32]",
-    ),
+    srgb("object[].texture.lane_color[]", "[0.04, 0.10, 0.32]"),
     whole("object[].texture.seed", 0.0, u32::MAX as f64, "1"),
     closed(
         "object[].texture.size_m[]",
@@ -257,7 +214,7 @@ pub const KEY_RANGES: &[KeyRange] = &[
         "0.0",
     ),
     closed("character[].scale", 1e-4, 1000.0, "", "0.01"),
-    closed("character[].tint[]", 0.0, 1.0, "sRGB", "[1.0, 1.0, 1.0]"),
+    srgb("character[].tint[]", "[1.0, 1.0, 1.0]"),
     closed(
         "character[].path[].frame",
         -(MAX_FRAME_NUMBER as f64),
@@ -363,6 +320,24 @@ impl KeyRange {
         } else {
             span
         }
+    }
+
+    /// The error of a value `written` outside the range: the problem and the fix (the key's
+    /// last name, e.g. `resolution`, set to the table's example).
+    pub fn problem(&self, written: &str) -> (String, String) {
+        let name = self
+            .key
+            .rsplit('.')
+            .next()
+            .unwrap_or(self.key)
+            .trim_end_matches("[]");
+        (
+            format!("must be {} (got {written})", self.describe()),
+            format!(
+                "write a value in that range, e.g. {name} = {}",
+                self.example
+            ),
+        )
     }
 
     /// The README's row: `| key | range | example |`.

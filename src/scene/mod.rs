@@ -706,21 +706,8 @@ fn check_value(
         return Ok(());
     }
     if !range.contains(number) {
-        return Err(map.error_at(
-            value.span().start,
-            path.to_string(),
-            format!("must be {} (got {written})", range.describe()),
-            format!(
-                "write a value in that range, e.g. {} = {}",
-                range
-                    .key
-                    .rsplit('.')
-                    .next()
-                    .unwrap_or(range.key)
-                    .trim_end_matches("[]"),
-                range.example
-            ),
-        ));
+        let (problem, fix) = range.problem(&written);
+        return Err(map.error_at(value.span().start, path.to_string(), problem, fix));
     }
     Ok(())
 }

@@ -37,7 +37,6 @@ const DEFAULT_WATER_MIN_XZ: [f64; 2] = [-5.0, -2.5];
 const DEFAULT_WATER_MAX_XZ: [f64; 2] = [5.0, 2.5];
 const DEFAULT_RESOLUTION: [i64; 2] = [128, 64];
 /// Membrane grids beyond this many cells a side are surely a typo (and would not fit in memory).
-const MAX_RESOLUTION: i64 = 8192;
 const DEFAULT_N_ABOVE: f64 = 1.0;
 const DEFAULT_N_BELOW: f64 = 1.333;
 /// Clear pool water: red is absorbed within metres, blue travels far (Pope & Fry 1997, roughly).
@@ -506,6 +505,18 @@ fn color(
         ));
     }
     Ok(c)
+}
+
+/// A value the file did not write (a default, or one derived from other keys) against its key's
+/// stated range in [`super::limits::KEY_RANGES`], in the words of the check of written numbers
+/// (which has already checked every number the file holds).
+fn in_stated_range(value: f64, at: &KeyPath, map: &SourceMap<'_>) -> Result<()> {
+    let range = super::limits::range_of(at).expect("in_stated_range: the key has a stated range");
+    if range.contains(value) {
+        return Ok(());
+    }
+    let (problem, fix) = range.problem(&value.to_string());
+    Err(map.error(at, problem, fix))
 }
 
 fn positive(value: f64, at: &KeyPath, example: &str, map: &SourceMap<'_>) -> Result<()> {

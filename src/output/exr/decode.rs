@@ -67,8 +67,23 @@ fn read_image(path: &Path) -> Result<AnyImage, OutputError> {
 
 /// Reads every channel of `path` as float32 (u32 samples converted exactly up to 2^24).
 pub fn read_channels(path: &Path) -> Result<ExrChannels, OutputError> {
-    let read_error = read_error_of(path);
+    channels_of(path, &read_image(path)?)
+}
+
+/// [`read_frame_exr`] and [`read_channels`] of one file from a single read and decoding of it
+/// (the preview's `--frames-dir` wants both).
+pub fn read_frame_and_channels(
+    path: &Path,
+) -> Result<(RenderedFrame, ReadMeta, ExrChannels), OutputError> {
     let image = read_image(path)?;
+    let channels = channels_of(path, &image)?;
+    let (frame, meta) = frame_of(path, &image)?;
+    Ok((frame, meta, channels))
+}
+
+/// [`read_channels`] of `image`, read from `path`.
+fn channels_of(path: &Path, image: &AnyImage) -> Result<ExrChannels, OutputError> {
+    let read_error = read_error_of(path);
     let first = &image.layer_data[0];
     let (width, height) = (first.size.width(), first.size.height());
     let mut channels = BTreeMap::new();
@@ -105,9 +120,13 @@ pub fn read_channels(path: &Path) -> Result<ExrChannels, OutputError> {
 /// out comes back empty too (only the beauty is always there); [`ReadMeta::channels`] lists what
 /// the file holds.
 pub fn read_frame_exr(path: &Path) -> Result<(RenderedFrame, ReadMeta), OutputError> {
+    frame_of(path, &read_image(path)?)
+}
+
+/// [`read_frame_exr`] of `image`, read from `path`.
+fn frame_of(path: &Path, image: &AnyImage) -> Result<(RenderedFrame, ReadMeta), OutputError> {
     let read_error = read_error_of(path);
     // u32 channels must stay exact (the first layout's object ids): read them apart.
-    let image = read_image(path)?;
     let first = &image.layer_data[0];
     let (width, height) = (first.size.width(), first.size.height());
     let pixel_count = width * height;
@@ -264,7 +283,7 @@ pub fn read_frame_exr(path: &Path) -> Result<(RenderedFrame, ReadMeta), OutputEr
     let [sr, sg, sb] = channels::SKY_REFLECTION.map(floats);
     let water_reflection = match (sr?, sg?, sb?) {
         (Some(sr), Some(sg), Some(sb)) if !water_matte.is_empty() => {
-            match water_reflectance(&image, &meta, &water_matte) {
+            match water_reflectance(image, &meta, &water_matte) {
                 Some(reflectance) => (0..pixel_count)
                     .map(|i| [sr[i], sg[i], sb[i], reflectance[i]])
                     .collect(),

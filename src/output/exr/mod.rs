@@ -32,7 +32,7 @@ use ::exr::compression::Compression;
 use super::{write_unsynced, OutputError, Unsynced};
 use crate::camera::Camera;
 use crate::draw::{RenderedFrame, NO_OBJECT};
-pub use decode::{read_channels, read_frame_exr};
+pub use decode::{read_channels, read_frame_and_channels, read_frame_exr};
 use encode::{push_f16, push_f32, ChannelSource};
 
 /// What the header records about a frame besides its pixels.

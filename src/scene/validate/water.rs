@@ -25,40 +25,17 @@ pub(super) fn water(
         ));
     }
     let resolution = raw.resolution.unwrap_or(DEFAULT_RESOLUTION);
-    if resolution
-        .iter()
-        .any(|&cells| !(1..=MAX_RESOLUTION).contains(&cells))
-    {
-        return Err(map.error(
-            &path.key("resolution"),
-            format!(
-                "must be at least 1 and at most {MAX_RESOLUTION} cells in each direction (got [{}, {}])",
-                resolution[0], resolution[1]
-            ),
-            "set e.g. resolution = [128, 64]",
-        ));
+    for (i, &cells) in resolution.iter().enumerate() {
+        in_stated_range(cells as f64, &path.key("resolution").index(i), map)?;
     }
     let n_above = raw.n_above.unwrap_or(DEFAULT_N_ABOVE);
     let n_below = raw.n_below.unwrap_or(DEFAULT_N_BELOW);
-    for (key, n, example) in [
-        ("n_above", n_above, "1.0 (air)"),
-        ("n_below", n_below, "1.333 (water)"),
-    ] {
-        if n <= 0.0 {
-            return Err(map.error(
-                &path.key(key),
-                format!("an index of refraction must be positive (got {n})"),
-                format!("set e.g. {key} = {example}"),
-            ));
-        }
-    }
     let absorption_per_m = raw.absorption_per_m.unwrap_or(DEFAULT_ABSORPTION_PER_M);
-    if absorption_per_m.iter().any(|&a| a < 0.0) {
-        return Err(map.error(
-            &path.key("absorption_per_m"),
-            format!("absorption coefficients cannot be negative (got {absorption_per_m:?})"),
-            "set e.g. absorption_per_m = [0.45, 0.07, 0.03] (clear pool water, 1/m)",
-        ));
+    // Written values were checked against their ranges where they stand; these catch defaults.
+    in_stated_range(n_above, &path.key("n_above"), map)?;
+    in_stated_range(n_below, &path.key("n_below"), map)?;
+    for (i, &a) in absorption_per_m.iter().enumerate() {
+        in_stated_range(a, &path.key("absorption_per_m").index(i), map)?;
     }
     let scatter = color(
         raw.scatter_color,
@@ -70,19 +47,8 @@ pub(super) fn water(
     let mut waves = Vec::new();
     for (i, wave) in raw.wave.iter().flatten().enumerate() {
         let at = path.key("wave").index(i);
-        if wave.amplitude_m < 0.0 {
-            return Err(map.error(
-                &at.key("amplitude_m"),
-                format!("cannot be negative (got {})", wave.amplitude_m),
-                "set e.g. amplitude_m = 0.02 (shift phase_rad by 3.14159 to flip a wave)",
-            ));
-        }
-        positive(
-            wave.wavelength_m,
-            &at.key("wavelength_m"),
-            "wavelength_m = 2.0",
-            map,
-        )?;
+        // amplitude_m, wavelength_m and speed_m_per_s are written values, range-checked where
+        // they stand (`super::limits`).
         let direction_deg = match (wave.direction_deg, wave.direction) {
             (Some(_), Some(_)) => {
                 return Err(map.error(
@@ -104,14 +70,6 @@ pub(super) fn water(
             }
             (None, None) => 0.0,
         };
-        if let Some(speed) = wave.speed_m_per_s {
-            positive(
-                speed,
-                &at.key("speed_m_per_s"),
-                "speed_m_per_s = 1.5, or remove it for deep-water speed",
-                map,
-            )?;
-        }
         waves.push(WaveSpec {
             amplitude_m: wave.amplitude_m,
             wavelength_m: wave.wavelength_m,
@@ -172,15 +130,8 @@ pub(super) fn ripples(
         ((depth_m / spacing_m).round() as i64 + 1).min(MAX_RIPPLE_NODES),
     ];
     let nodes = raw.resolution.unwrap_or(default_nodes);
-    if nodes.iter().any(|&n| !(3..=MAX_RIPPLE_NODES).contains(&n)) {
-        return Err(map.error(
-            &path.key("resolution"),
-            format!(
-                "the ripple grid needs 3 to {MAX_RIPPLE_NODES} nodes in each direction (got [{}, {}])",
-                nodes[0], nodes[1]
-            ),
-            "set e.g. resolution = [256, 128]",
-        ));
+    for (i, &n) in nodes.iter().enumerate() {
+        in_stated_range(n as f64, &path.key("resolution").index(i), map)?;
     }
     let spacing = [
         width_m / (nodes[0] - 1) as f64,
@@ -208,12 +159,6 @@ pub(super) fn ripples(
         .density_kg_per_m3
         .unwrap_or(crate::sim::ripples::WATER_DENSITY_KG_PER_M3);
     let damping_per_s = raw.damping_per_s.unwrap_or(DEFAULT_RIPPLE_DAMPING_PER_S);
-    non_negative(
-        damping_per_s,
-        &path.key("damping_per_s"),
-        "damping_per_s = 0.5",
-        map,
-    )?;
     let border = match raw.border.as_deref().unwrap_or("reflect") {
         "reflect" => crate::sim::Border::Reflect,
         "absorb" => crate::sim::Border::Absorb,
@@ -226,21 +171,17 @@ pub(super) fn ripples(
         }
     };
     let sponge_width_m = raw.sponge_width_m.unwrap_or(DEFAULT_SPONGE_WIDTH_M);
-    non_negative(
-        sponge_width_m,
-        &path.key("sponge_width_m"),
-        "sponge_width_m = 0.5",
-        map,
-    )?;
     let strength = raw.strength.unwrap_or(1.0);
-    non_negative(strength, &path.key("strength"), "strength = 1.0", map)?;
     let coupling_depth_m = raw.coupling_depth_m.unwrap_or(DEFAULT_COUPLING_DEPTH_M);
-    positive(
-        coupling_depth_m,
-        &path.key("coupling_depth_m"),
-        "coupling_depth_m = 0.1",
-        map,
-    )?;
+    // Written values were checked against their ranges where they stand; these catch defaults.
+    for (key, value) in [
+        ("damping_per_s", damping_per_s),
+        ("sponge_width_m", sponge_width_m),
+        ("strength", strength),
+        ("coupling_depth_m", coupling_depth_m),
+    ] {
+        in_stated_range(value, &path.key(key), map)?;
+    }
     Ok(RippleSpec {
         enabled: raw.enabled.unwrap_or(has_characters),
         nodes: [nodes[0] as u32, nodes[1] as u32],
