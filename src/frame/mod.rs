@@ -629,6 +629,7 @@ impl RenderJob {
         height: u32,
         previous: Option<&VertexTracking>,
     ) -> Result<RefractedFrame, SnellError> {
+        crate::panics::inject_for_tests(frame);
         let mut stage_secs = BTreeMap::new();
         let water = self.frame_water(frame, &mut stage_secs)?;
         if self.method.traced_water().is_some() {

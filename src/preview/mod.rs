@@ -87,6 +87,9 @@ pub struct PreviewOptions {
 pub struct Faults {
     /// The render worker panics whenever it is asked to render this frame.
     pub worker_panic_frame: Option<u32>,
+    /// The render worker panics at every task (a frame's render or a strip's count), so that it
+    /// is given up after three panics in a row (`RESTARTS_IN_A_ROW`).
+    pub worker_panics_always: bool,
     /// The file watcher panics at each of its first this-many polls.
     pub watcher_panics: u32,
 }
