@@ -859,15 +859,12 @@ impl Renderer {
         width: u32,
         height: u32,
     ) -> Result<RenderedFrame, GpuError> {
-        let mut strips = Vec::new();
+        let mut whole = None;
         self.render_strips(draw, view, width, height, |_, strip| {
-            strips.push(strip);
+            RenderedFrame::gather(&mut whole, strip, height);
             Ok::<(), GpuError>(())
         })?;
-        if strips.len() == 1 {
-            return Ok(strips.pop().expect("one strip"));
-        }
-        Ok(RenderedFrame::stacked(strips))
+        Ok(whole.unwrap_or_default())
     }
 
     /// Makes every frame's strips `rows` rows high (rounded down to [`STRIP_ROW_MULTIPLE`]), or,
