@@ -197,34 +197,64 @@ impl RenderedFrame {
 
     /// The frame made of `strips` (bands of rows of one width, top first), one under the other.
     pub fn stacked(strips: Vec<RenderedFrame>) -> RenderedFrame {
-        let width = strips.first().map_or(0, |strip| strip.width);
-        let mut frame = RenderedFrame {
-            width,
-            height: 0,
-            beauty_rgba: Vec::new(),
-            depth_m: Vec::new(),
-            apparent_depth_m: Vec::new(),
-            position: Vec::new(),
-            flags: Vec::new(),
-            object: Vec::new(),
-            water_matte: Vec::new(),
-            water_reflection: Vec::new(),
-            motion_px: Vec::new(),
+        let mut strips = strips.into_iter();
+        let Some(mut frame) = strips.next() else {
+            return RenderedFrame::default();
         };
         for strip in strips {
-            debug_assert_eq!(strip.width, width, "strips of one frame have one width");
-            frame.height += strip.height;
-            frame.beauty_rgba.extend(strip.beauty_rgba);
-            frame.depth_m.extend(strip.depth_m);
-            frame.apparent_depth_m.extend(strip.apparent_depth_m);
-            frame.motion_px.extend(strip.motion_px);
-            frame.position.extend(strip.position);
-            frame.flags.extend(strip.flags);
-            frame.object.extend(strip.object);
-            frame.water_matte.extend(strip.water_matte);
-            frame.water_reflection.extend(strip.water_reflection);
+            frame.append(strip);
         }
         frame
+    }
+
+    /// Puts `strip` (the next band of rows, of this frame's width) under this frame's rows.
+    pub fn append(&mut self, strip: RenderedFrame) {
+        debug_assert_eq!(
+            strip.width, self.width,
+            "strips of one frame have one width"
+        );
+        self.height += strip.height;
+        self.beauty_rgba.extend(strip.beauty_rgba);
+        self.depth_m.extend(strip.depth_m);
+        self.apparent_depth_m.extend(strip.apparent_depth_m);
+        self.motion_px.extend(strip.motion_px);
+        self.position.extend(strip.position);
+        self.flags.extend(strip.flags);
+        self.object.extend(strip.object);
+        self.water_matte.extend(strip.water_matte);
+        self.water_reflection.extend(strip.water_reflection);
+    }
+
+    /// Adds `strip`, the next band of rows of a frame `height` rows high, to `whole`, the rows
+    /// gathered so far (`None` before the first strip): the first strip becomes the frame, with
+    /// room reserved for every row, and each later one is appended and dropped, so the whole
+    /// frame is held once (plus one strip), never twice.
+    pub fn gather(whole: &mut Option<RenderedFrame>, strip: RenderedFrame, height: u32) {
+        match whole {
+            Some(frame) => frame.append(strip),
+            None => {
+                let mut frame = strip;
+                frame.reserve_rows(height.saturating_sub(frame.height));
+                *whole = Some(frame);
+            }
+        }
+    }
+
+    /// Room for `rows` more rows in every layer, so that appending them allocates nothing.
+    fn reserve_rows(&mut self, rows: u32) {
+        if rows == 0 {
+            return;
+        }
+        let pixels = self.width as usize * rows as usize;
+        self.beauty_rgba.reserve_exact(pixels);
+        self.depth_m.reserve_exact(pixels);
+        self.apparent_depth_m.reserve_exact(pixels);
+        self.motion_px.reserve_exact(pixels);
+        self.position.reserve_exact(pixels);
+        self.flags.reserve_exact(pixels);
+        self.object.reserve_exact(pixels);
+        self.water_matte.reserve_exact(pixels);
+        self.water_reflection.reserve_exact(pixels);
     }
 }
 

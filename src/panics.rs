@@ -56,6 +56,28 @@ pub fn catch<T>(work: impl FnOnce() -> T) -> Result<T, String> {
     catch_unwind(AssertUnwindSafe(work)).map_err(|payload| describe(payload.as_ref()))
 }
 
+/// The environment variable of [`inject_for_tests`].
+pub const TEST_PANIC_VARIABLE: &str = "SNELL_TEST_PANIC_FRAME";
+
+/// A test hook: when `SNELL_TEST_PANIC_FRAME` holds `frame`, panics on a rayon worker thread, as
+/// a bug in one of the frame's parallel stages would, so that tests can check that such a panic
+/// becomes exit 1 naming the frame, with no partial frame left (tests/no_panics.rs). Only tests
+/// set it; the README's "Testing" notes list it.
+pub fn inject_for_tests(frame: u32) {
+    let wanted = std::env::var(TEST_PANIC_VARIABLE)
+        .ok()
+        .and_then(|value| value.trim().parse::<u32>().ok());
+    if wanted != Some(frame) {
+        return;
+    }
+    use rayon::prelude::*;
+    (0..64u32).into_par_iter().for_each(|i| {
+        if i == 63 {
+            panic!("an injected panic ({TEST_PANIC_VARIABLE}={frame})");
+        }
+    });
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -381,3 +381,48 @@ fn degenerate_cameras_are_handled_or_refused_at_their_line() {
         ],
     );
 }
+
+/// A command that keeps whole frames (here `snell stability`: this frame's and the previous
+/// frame's reference and renders) counts them in its memory estimate, so a size whose strips fit
+/// the limit but whose kept frames do not is refused with exit 2 at its first frame, before any
+/// frame is rendered, instead of being killed for memory. 4096x4096 under a 3 GiB limit: a render
+/// streaming its strips fits (about 2.8 GiB); four kept frames (about 6.3 GiB more) do not.
+#[test]
+fn commands_that_keep_whole_frames_count_them_before_rendering() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("tiny.toml"), TINY).unwrap();
+    let clock = Instant::now();
+    let output = snell_env(
+        &[
+            "stability",
+            "tiny.toml",
+            "--frames",
+            "1-2",
+            "--size",
+            "4096x4096",
+            "--methods",
+            "equal-t",
+            "--out",
+            "stability",
+        ],
+        dir.path(),
+        &[("SNELL_MAX_MEMORY", "3G")],
+    );
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("4096x4096") && stderr.contains("memory limit of 3.0 GiB"),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("panicked"), "a panic:\n{stderr}");
+    // Refused before a 16.8-megapixel frame was drawn (that alone takes minutes here).
+    assert!(
+        clock.elapsed() < Duration::from_secs(60),
+        "{:?}",
+        clock.elapsed()
+    );
+    let written: Vec<_> = std::fs::read_dir(dir.path().join("stability"))
+        .map(|entries| entries.flatten().map(|e| e.file_name()).collect())
+        .unwrap_or_default();
+    assert!(written.is_empty(), "{written:?}");
+}

@@ -420,6 +420,54 @@ fn a_render_worker_panic_fails_its_frame_at_once_and_the_worker_restarts() {
     server.stop();
 }
 
+/// A render worker that panics at every task is restarted twice and given up at the third panic
+/// in a row: the health check is then 503, and every frame request fails at once (a 5xx within a
+/// second) with the reason, naming how often it panicked.
+#[test]
+fn a_render_worker_that_keeps_panicking_is_given_up_and_frames_fail_at_once() {
+    let temp = tempfile::tempdir().unwrap();
+    let faults = Faults {
+        worker_panics_always: true,
+        ..Faults::default()
+    };
+    let server = start_with(&scene("pool.toml"), temp.path(), faults);
+    error_of(&server, "/api/frame/1.png", 500);
+    wait_until("the dead render worker", || {
+        fetch(&server, "/api/health").status == 503
+    });
+    let health = fetch(&server, "/api/health").json().unwrap();
+    assert_eq!(
+        health["threads"]["render_worker"]["restarts"], 2,
+        "{health}"
+    );
+    let dead = health["threads"]["render_worker"]["dead"]
+        .as_str()
+        .unwrap_or_default()
+        .to_string();
+    assert!(
+        dead.contains("render worker panicked 3 times in a row") && dead.contains("injected"),
+        "{health}"
+    );
+    // A frame far from those the three panics were on: it fails at once with the reason.
+    let asked = Instant::now();
+    let message = error_of(&server, "/api/frame/40.png", 500);
+    assert!(
+        asked.elapsed() < Duration::from_secs(1),
+        "the 5xx came after {:?}",
+        asked.elapsed()
+    );
+    assert!(message.contains("3 times in a row"), "{message}");
+    let state = fetch(&server, "/api/scene").json().unwrap();
+    assert!(
+        state["thread_problem"]
+            .as_str()
+            .unwrap_or_default()
+            .contains("render worker panicked 3 times in a row"),
+        "{state}"
+    );
+    server.stop();
+}
+
 #[test]
 fn a_watcher_panic_restarts_it_and_repeated_ones_are_reported_with_a_5xx() {
     let temp = tempfile::tempdir().unwrap();

@@ -3,10 +3,23 @@
 //! last one of 48). What holds: the flags, the water matte and alpha are equal; depth and the sky
 //! reflection are within 1e-5 (relative above 1 m); the written frame passes
 //! `snell diff` against the whole one (the goldens' criteria). What does not (issue 19's must-hold
-//! asks for it): the beauty and the object layers within 1e-5 everywhere. Mesa's rasteriser
-//! interpolates attributes relative to the window position, so a strip's UVs differ from the
-//! whole frame's in the last bits, and pixels on a texture's checker edge (about 0.8 % here) or on
-//! an object's edge (2 pixels; on GL also one apparent-depth sample) come out on the other side.
+//! asks for it; the ignored test below checks it): the beauty, position and object layers within
+//! 1e-5 everywhere.
+//!
+//! Why: every strip already draws through the whole frame's projection, with the viewport moved
+//! up by a whole number of rows. But Mesa's rasteriser (llvmpipe / lavapipe) sets up each
+//! attribute's plane equation at the attachment's window origin (a0 + dadx x + dady y), and a
+//! strip's attachment starts at its first row, so the same fragment is evaluated from a
+//! different origin with different rounding: on pool frame 24 more than a million samples of
+//! every interpolated layer differ in their last bits (beauty 1,267,854, position 1,584,258,
+//! depth 366,635; the flags and the matte, computed per pixel, are bit-equal). The beauty's
+//! trilinear texture lookups turn a UV's last-bit difference into more than 1e-5 where adjacent
+//! texels differ (18,321 samples, on the tiles' edges), and vertex window positions that round
+//! differently before the rasteriser's 1/256-pixel snapping move 2 object-edge pixels to the
+//! other object. Bit-equal strips need the fragment maths not to depend on the attachment's
+//! origin: attributes interpolated in the shader from the triangle's three vertices and the
+//! fragment's frame row (vertex pulling), and vertex positions snapped exactly in both
+//! placements. That is a rewrite of the draws, not done yet.
 
 use std::path::Path;
 
@@ -58,8 +71,21 @@ fn layers(frame: &RenderedFrame) -> Vec<(&'static str, Vec<f32>)> {
     ]
 }
 
-#[test]
-fn a_frame_drawn_in_strips_equals_the_frame_drawn_whole() {
+/// How far one layer of the strips is from the whole frame's.
+struct LayerDifference {
+    name: &'static str,
+    /// Samples whose bits differ at all.
+    unequal: usize,
+    /// Samples beyond [`TOLERANCE`] ([`over_tolerance`]).
+    over: usize,
+    /// The largest difference (relative above 1) and the frame row it is on.
+    largest: f32,
+    row: usize,
+}
+
+/// Pool frame 24 at 1280x720 drawn whole, and drawn in strips of [`STRIP_ROWS`] rows, compared
+/// layer by layer (every layer of [`layers`]); prints the table.
+fn strips_against_whole() -> Vec<LayerDifference> {
     let job = pool();
     let mut renderer = Renderer::new().unwrap();
     job.upload_textures(&mut renderer).unwrap();
@@ -99,17 +125,93 @@ fn a_frame_drawn_in_strips_equals_the_frame_drawn_whole() {
     assert_eq!(starts, expected, "strips of 96 rows, the last one 48");
     let stacked = RenderedFrame::stacked(strips);
     assert_eq!((stacked.width, stacked.height), (WIDTH, HEIGHT));
-    for ((name, whole), (_, strips)) in layers(&whole).into_iter().zip(layers(&stacked)) {
-        assert!(!whole.is_empty(), "layer {name} is empty");
-        if !EQUAL_LAYERS.contains(&name) {
-            continue;
+    println!("adapter: {}", renderer.adapter_summary());
+    layers(&whole)
+        .into_iter()
+        .zip(layers(&stacked))
+        .map(|((name, whole), (_, strips))| {
+            assert!(!whole.is_empty(), "layer {name} is empty");
+            let (largest, at) = largest_difference(&whole, &strips);
+            let difference = LayerDifference {
+                name,
+                unequal: whole
+                    .iter()
+                    .zip(&strips)
+                    .filter(|(a, b)| a.to_bits() != b.to_bits())
+                    .count(),
+                over: over_tolerance(&whole, &strips),
+                largest,
+                row: at / (whole.len() / HEIGHT as usize),
+            };
+            println!(
+                "layer {name}: {} of {} samples not bit-equal, {} beyond {TOLERANCE}, largest difference {largest:e} (row {})",
+                difference.unequal,
+                whole.len(),
+                difference.over,
+                difference.row
+            );
+            difference
+        })
+        .collect()
+}
+
+/// The largest difference of `a` and `b` (relative above 1, as [`over_tolerance`] measures) and
+/// the index of its sample.
+fn largest_difference(a: &[f32], b: &[f32]) -> (f32, usize) {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| {
+            if x == y {
+                0.0
+            } else {
+                (x - y).abs() / x.abs().max(1.0)
+            }
+        })
+        .enumerate()
+        .fold((0.0f32, 0usize), |(max, at), (i, d)| {
+            if d > max || d.is_nan() {
+                (d, i)
+            } else {
+                (max, at)
+            }
+        })
+}
+
+/// The layers strips keep within [`TOLERANCE`] today.
+#[test]
+fn a_frame_drawn_in_strips_equals_the_frame_drawn_whole() {
+    for difference in strips_against_whole() {
+        if EQUAL_LAYERS.contains(&difference.name) {
+            assert_eq!(
+                difference.over, 0,
+                "layer {}: {} samples differ from the whole frame's by more than {TOLERANCE} (largest {:e}, row {})",
+                difference.name, difference.over, difference.largest, difference.row
+            );
         }
-        let over = over_tolerance(&whole, &strips);
-        assert_eq!(
-            over, 0,
-            "layer {name}: {over} samples differ from the whole frame's by more than {TOLERANCE}"
-        );
     }
+}
+
+/// Issue 19's must-hold: every layer within [`TOLERANCE`]. NOT met (see the module documentation
+/// for why): on lavapipe, pool frame 24 had 18,321 beauty samples beyond 1e-5 (largest 0.23, on
+/// an object's edge), 4 position samples (largest 9.2e-5) and 2 object pixels. Run it with
+/// `cargo test --release --test strips -- --ignored --nocapture` to see the table.
+#[test]
+#[ignore = "issue 19 must-hold not met yet: Mesa interpolates from the window origin, so strips differ at texture and object edges"]
+fn every_layer_drawn_in_strips_is_within_1e_5_of_the_frame_drawn_whole() {
+    let failures: Vec<String> = strips_against_whole()
+        .into_iter()
+        .filter(|difference| difference.over > 0)
+        .map(|difference| {
+            format!(
+                "{}: {} samples beyond {TOLERANCE}, largest {:e} at row {}",
+                difference.name, difference.over, difference.largest, difference.row
+            )
+        })
+        .collect();
+    assert!(
+        failures.is_empty(),
+        "strips differ from the whole frame: {failures:?}"
+    );
 }
 
 #[test]

@@ -202,7 +202,9 @@ pub fn measure_choice(
     let frames = measured_frames(job);
     let scene_resolution = job.scene.water.resolution;
     let configurations = candidates(scene_resolution);
-    let mut measurer = Measurer::new(job, width, height)?;
+    // Every measured frame's reference, the candidate measured and the frame in the making.
+    let frames_held = frames.len() as u32 + 2;
+    let mut measurer = Measurer::new(job, width, height, frames_held)?;
     let bar = super::progress_bar((frames.len() * (1 + configurations.len())) as u64, progress);
     let reference_configuration = Configuration {
         method: REFERENCE_METHOD,

@@ -131,10 +131,21 @@ pub struct Measurer<'a> {
     pub height: u32,
     /// The job's own method and resolution, restored when the measurer is dropped.
     original: Configuration,
+    /// The job's own [`RenderJob::frames_held`], restored when the measurer is dropped.
+    original_frames_held: u32,
 }
 
 impl<'a> Measurer<'a> {
-    pub fn new(job: &'a mut RenderJob, width: u32, height: u32) -> Result<Self, SnellError> {
+    /// A measurer of `job` at `width` x `height` for a command that keeps `frames_held` whole
+    /// frames at once (the reference and what is compared with it), so that each frame's memory
+    /// estimate counts them ([`RenderJob::frames_held`]).
+    pub fn new(
+        job: &'a mut RenderJob,
+        width: u32,
+        height: u32,
+        frames_held: u32,
+    ) -> Result<Self, SnellError> {
+        let original_frames_held = std::mem::replace(&mut job.frames_held, frames_held);
         let mut renderer = Renderer::new()?;
         job.upload_textures(&mut renderer)?;
         let original = Configuration {
@@ -147,6 +158,7 @@ impl<'a> Measurer<'a> {
             width,
             height,
             original,
+            original_frames_held,
         })
     }
 
@@ -251,6 +263,7 @@ impl Drop for Measurer<'_> {
     fn drop(&mut self) {
         let original = self.original;
         self.configure(original);
+        self.job.frames_held = self.original_frames_held;
     }
 }
 
@@ -357,7 +370,8 @@ pub fn run_chart(job: &mut RenderJob, options: &ChartOptions) -> Result<ChartOut
     crate::output::check_writable(&options.out_dir)?;
     let configurations = chart_configurations(job.scene.water.resolution);
     let scene = job.scene_name().to_string();
-    let mut measurer = Measurer::new(job, options.width, options.height)?;
+    // The reference, the configuration measured against it and the frame in the making.
+    let mut measurer = Measurer::new(job, options.width, options.height, 3)?;
     let adapter = measurer.adapter();
     let bar = progress_bar(configurations.len() as u64, options.progress);
     bar.set_message("warm-up render");

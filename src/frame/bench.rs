@@ -118,7 +118,14 @@ pub fn written_times(
         let mut previous = None;
         for &frame in &list {
             let mut refracted = job.refract(frame, width, height, previous.as_ref())?;
-            job.render_refracted(&mut renderer, &mut refracted, width, height)?;
+            // Read back strip by strip and dropped: nothing of the frame is kept.
+            job.render_refracted_strips(
+                &mut renderer,
+                &mut refracted,
+                width,
+                height,
+                &mut |_, _| Ok(()),
+            )?;
             previous = Some(refracted.tracking);
         }
         Ok(start.elapsed().as_secs_f64() * 1e3 / count)
@@ -675,7 +682,13 @@ fn frame_times(
     for (i, frame) in (timeline.first_frame..timeline.first_frame + frames + 1).enumerate() {
         let frame = frame.min(timeline.last_frame);
         let mut refracted = job.refract(frame, width, height, previous.as_ref())?;
-        job.render_refracted(&mut *renderer, &mut refracted, width, height)?;
+        job.render_refracted_strips(
+            &mut *renderer,
+            &mut refracted,
+            width,
+            height,
+            &mut |_, _| Ok(()),
+        )?;
         if i > 0 {
             for (stage, secs) in &refracted.stage_secs {
                 per_stage.entry(stage.clone()).or_default().push(secs * 1e3);

@@ -87,16 +87,19 @@ pub fn check_loaded(
 /// The whole estimate of a frame at `width` x `height` by `method` against the memory limit,
 /// before any frame is made. The GPU methods draw, read back and write a large frame in strips
 /// ([`crate::gpu::Renderer::render_strips`]), so their pixels cost a bounded strip plus a little
-/// per pixel of the frame; the ray-traced methods hold the whole frame.
+/// per pixel of the frame; the ray-traced methods hold the whole frame; and `frames_held` whole
+/// frames are counted for the commands that keep frames ([`super::RenderJob::frames_held`]).
 pub fn check_frame(
     estimate: &Estimate,
     method: Method,
     width: u32,
     height: u32,
+    frames_held: u32,
 ) -> Result<Estimate, SnellError> {
     let mut estimate = *estimate;
     estimate.pixels = width as u64 * height as u64;
     estimate.in_strips = method.uses_gpu();
+    estimate.frames_held = frames_held as u64;
     let limit = resources::memory_limit().map_err(SnellError::Argument)?;
     if estimate.bytes() > limit {
         return Err(SnellError::Argument(format!(

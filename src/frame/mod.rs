@@ -368,6 +368,10 @@ pub struct RenderJob {
     /// `None`: whole frames when they fit one readback, strips otherwise. Strips give the same
     /// pixels; forcing them is for tests and measurements (`--strip-rows`).
     pub strip_rows: Option<u32>,
+    /// Whole frames the command keeps at once (0: a render, which streams its strips to the
+    /// file): counted in each frame's memory estimate ([`Self::check_frame_resources`]), so a
+    /// size whose frames cannot all be held is refused before the work, not killed in it.
+    pub frames_held: u32,
     /// Heights the refraction search must cover for the static objects (characters and ripples
     /// widen it per frame).
     query_y_range: (f32, f32),
@@ -431,6 +435,7 @@ impl RenderJob {
             stamp: HeaderStamp::default(),
             write: Default::default(),
             strip_rows: None,
+            frames_held: 0,
             query_y_range: (bottom, top),
             traced_textures: std::sync::OnceLock::new(),
             scene_files,
@@ -444,7 +449,14 @@ impl RenderJob {
     pub fn check_frame_resources(&self, width: u32, height: u32) -> Result<(), SnellError> {
         // A glTF camera with its own aspect ratio renders only frames of that shape.
         self.scene.camera.check_frame_size(width, height)?;
-        limits::check_frame(&self.resources, self.method, width, height).map(|_| ())
+        limits::check_frame(
+            &self.resources,
+            self.method,
+            width,
+            height,
+            self.frames_held,
+        )
+        .map(|_| ())
     }
 
     /// The rendering method, as EXR headers and report rows name it.
@@ -629,6 +641,7 @@ impl RenderJob {
         height: u32,
         previous: Option<&VertexTracking>,
     ) -> Result<RefractedFrame, SnellError> {
+        crate::panics::inject_for_tests(frame);
         let mut stage_secs = BTreeMap::new();
         let water = self.frame_water(frame, &mut stage_secs)?;
         if self.method.traced_water().is_some() {
@@ -742,15 +755,13 @@ impl RenderJob {
         width: u32,
         height: u32,
     ) -> Result<RenderedFrame, SnellError> {
-        let mut strips = Vec::new();
+        // The strips gathered into the whole frame as they come (held once, never twice).
+        let mut whole = None;
         self.render_strips_caught(renderer, refracted, width, height, &mut |_, strip| {
-            strips.push(strip);
+            RenderedFrame::gather(&mut whole, strip, height);
             Ok(())
         })?;
-        Ok(match strips.len() {
-            1 => strips.pop().expect("one strip"),
-            _ => RenderedFrame::stacked(strips),
-        })
+        Ok(whole.unwrap_or_default())
     }
 
     /// Renders one frame as [`Self::render_refracted`] does, but gives it to `sink` strip by

@@ -1,5 +1,6 @@
 //! Adapter and device: Vulkan when present, else GL (`WGPU_BACKEND` and `WGPU_ADAPTER_NAME`
-//! honoured), and the target formats the chosen adapter can actually render.
+//! honoured), the target formats the chosen adapter can actually render, and the error scopes
+//! wgpu's calls run in.
 
 use super::GpuError;
 
@@ -163,5 +164,29 @@ impl GpuContext {
 
     pub fn summary(&self) -> String {
         summary_of(&self.adapter_info)
+    }
+}
+
+/// Runs `work` inside out-of-memory and validation error scopes, so wgpu errors come back as a
+/// [`GpuError`] naming `stage` instead of panicking; the scopes are popped on every path.
+pub(crate) fn within_error_scopes<T>(
+    device: &wgpu::Device,
+    stage: &'static str,
+    work: impl FnOnce() -> Result<T, GpuError>,
+) -> Result<T, GpuError> {
+    let out_of_memory = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+    let validation = device.push_error_scope(wgpu::ErrorFilter::Validation);
+    let result = work();
+    // Scopes pop innermost first.
+    let caught = [validation.pop(), out_of_memory.pop()].map(pollster::block_on);
+    match caught.into_iter().flatten().next() {
+        Some(error) => {
+            let message = match &error {
+                wgpu::Error::Validation { description, .. } => description.clone(),
+                other => format!("{other}: {other:?}"),
+            };
+            Err(GpuError::Wgpu { stage, message })
+        }
+        None => result,
     }
 }

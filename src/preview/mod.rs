@@ -87,6 +87,9 @@ pub struct PreviewOptions {
 pub struct Faults {
     /// The render worker panics whenever it is asked to render this frame.
     pub worker_panic_frame: Option<u32>,
+    /// The render worker panics at every task (a frame's render or a strip's count), so that it
+    /// is given up after three panics in a row (`RESTARTS_IN_A_ROW`).
+    pub worker_panics_always: bool,
     /// The file watcher panics at each of its first this-many polls.
     pub watcher_panics: u32,
 }
@@ -195,6 +198,10 @@ struct State {
 /// Panics after which a thread is given up (a panic between them that did useful work resets
 /// the count): the page and the API then report it dead, and every frame request gets a 5xx.
 const RESTARTS_IN_A_ROW: u32 = 3;
+
+/// Frames the preview's cache keeps at least, however large (counted in each frame's memory
+/// estimate: [`RenderJob::frames_held`]).
+const MIN_CACHED_FRAMES: usize = 8;
 
 /// How a supervised thread (the render worker, the file watcher) is doing.
 #[derive(Clone, Debug, Default, serde::Serialize)]
@@ -417,7 +424,7 @@ impl PreviewServer {
         let bytes_per_pixel = if folders.is_empty() { 40 } else { 160 };
         let frame_bytes = width as usize * height as usize * bytes_per_pixel;
         // About 1 GiB of linear frames (8 MiB each at 640x360: 128 frames), at least 8.
-        let frame_capacity = ((1usize << 30) / frame_bytes.max(1)).clamp(8, 512);
+        let frame_capacity = ((1usize << 30) / frame_bytes.max(1)).clamp(MIN_CACHED_FRAMES, 512);
         let shared = Arc::new(Shared {
             state: Mutex::new(State {
                 revision: 0,
@@ -671,7 +678,9 @@ impl Watcher {
         let started = Instant::now();
         self.pending = None;
         let scene_before = self.fingerprint().scene;
-        let loaded = RenderJob::prepare(&self.scene_path).and_then(|job| {
+        let loaded = RenderJob::prepare(&self.scene_path).and_then(|mut job| {
+            // The frame cache keeps at least this many whole frames (see `PreviewServer::start`).
+            job.frames_held = MIN_CACHED_FRAMES as u32;
             let out_dir = shared
                 .out_dir
                 .clone()

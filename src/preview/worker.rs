@@ -286,7 +286,8 @@ impl Worker<'_> {
     }
 
     fn render(&mut self, shared: &Shared, key: FrameKey) -> Result<CachedFrame, SnellError> {
-        if shared.faults.worker_panic_frame == Some(key.frame) {
+        if shared.faults.worker_panic_frame == Some(key.frame) || shared.faults.worker_panics_always
+        {
             panic!("an injected render-worker panic (Faults::worker_panic_frame)");
         }
         let method = match key.source {
@@ -333,6 +334,9 @@ impl Worker<'_> {
         shared: &Shared,
         key: FrameKey,
     ) -> Result<crate::refraction::flags::FlagCounts, SnellError> {
+        if shared.faults.worker_panics_always {
+            panic!("an injected render-worker panic (Faults::worker_panics_always)");
+        }
         let cursor_previous = self
             .cursors
             .get_mut(&key.source)

@@ -53,6 +53,9 @@ const MAX_STRIP_PIXELS: u64 = (256 << 20) / 68;
 /// their EXR samples and chunks.
 const BYTES_PER_STRIP_PIXEL: u64 = 600;
 const BYTES_PER_RIPPLE_NODE: u64 = 64;
+/// A pixel of a frame kept whole ([`crate::draw::RenderedFrame`]: 72 bytes of layers) with a
+/// margin for what is derived from it (a comparison's maps, the preview's encoded images).
+const BYTES_PER_HELD_PIXEL: u64 = 100;
 
 /// `SNELL_MAX_MEMORY` parsed, or the default; an unreadable value is an error naming it.
 pub fn memory_limit() -> Result<u64, String> {
@@ -112,6 +115,10 @@ pub struct Estimate {
     /// Whether the frame is drawn and written in strips (the GPU methods), so that only a strip
     /// of it is held at a time.
     pub in_strips: bool,
+    /// Whole frames of this size the command keeps in memory at once besides its strips: the
+    /// frames `snell chart` and `snell stability` compare and the frames the preview caches (0
+    /// for a render, which streams every strip to the file).
+    pub frames_held: u64,
     /// Objects drawn (a pool counts three, a character one per primitive once loaded).
     pub objects: u64,
 }
@@ -129,16 +136,21 @@ impl Estimate {
     }
 
     /// The memory the image itself needs: a strip's and a little per pixel when it is drawn in
-    /// strips, every pixel's otherwise.
+    /// strips, every pixel's otherwise; and the whole frames the command keeps.
     fn pixel_bytes(&self) -> u64 {
-        if self.in_strips {
+        let held = self
+            .pixels
+            .saturating_mul(BYTES_PER_HELD_PIXEL)
+            .saturating_mul(self.frames_held);
+        let drawn = if self.in_strips {
             let strip = self.pixels.min(MAX_STRIP_PIXELS);
             strip
                 .saturating_mul(BYTES_PER_STRIP_PIXEL)
                 .saturating_add(self.pixels.saturating_mul(BYTES_PER_STREAMED_PIXEL))
         } else {
             self.pixels.saturating_mul(BYTES_PER_PIXEL)
-        }
+        };
+        drawn.saturating_add(held)
     }
 
     /// One line for `snell info`.
@@ -350,6 +362,7 @@ pub(crate) fn check_scene(
         texture_bytes: 0,
         pixels: 0,
         in_strips: false,
+        frames_held: 0,
         objects: drawn as u64,
     };
     // The scene alone (no image yet) must fit the memory limit too.

@@ -130,7 +130,9 @@ pub fn run_stability(
     // The static objects are the first ids (object index + 1); characters follow and move.
     let static_objects = job.objects.len() as u32;
     let tracked = move |object: u32| object >= 1 && object <= static_objects;
-    let mut measurer = Measurer::new(job, options.width, options.height)?;
+    // This frame's and the previous frame's reference and renders, one per method.
+    let frames_held = 2 * (options.methods.len() as u32 + 1);
+    let mut measurer = Measurer::new(job, options.width, options.height, frames_held)?;
     let adapter = measurer.adapter();
     let renders_per_frame = options.methods.len() as u64 + 1;
     let bar = progress_bar(
