@@ -17,6 +17,29 @@
 //! steepest descent on `phi`. Each step is capped at the water path `|V - S|`: the sight point is
 //! never farther than that from V horizontally.
 //!
+//! # Where it fails, and how fast
+//! A solve fails where no stationary point lies near its start: past a fold of the exact surface
+//! (a caustic), where two images of the faceted membrane have no counterpart on the exact surface,
+//! `phi` has a local minimum with `grad L != 0` on the fold line (`det Hess L = 0` there). The
+//! iterates then cross the fold back and forth (the Hessian's determinant changes sign), the
+//! Newton direction grows and the line search shrinks the step ever more. Measured on
+//! `scenes/hard/wading_wake.toml` frame 44 at 1280x720 (every solve of a frame recorded and
+//! replayed): 49,665 of 485,525 solves failed, 49,633 of them with the determinant changing sign
+//! along the way; they ended with `|grad L|` of 3e-3 to 6e-2 (10th to 90th percentile) after
+//! accepting steps of 2^-32 of the Newton step (median), and made 16.7 M of the frame's 19.4 M
+//! evaluations of grad and Hess L. Converging solves almost never need that many halvings: 376 of
+//! 435,860 needed more than 12 in some iteration. So the line search gives up after
+//! [`MAX_HALVINGS`] = 12 (a failing solve costs at most 12 evaluations per iteration instead of
+//! 40), which cuts that frame's evaluations to 6.3 M.
+//!
+//! A failed solve from a linear image is retried ([`exact_images`]) from [`RETRY_SEEDS`] seeds
+//! around its start, half a membrane cell's diagonal away: the linear image lies on a facet, and
+//! where its own start sits past a fold, the exact image it stands for (if any) lies within about
+//! a cell. On the same frame, of 497 failed solves from linear images, retries from 4 seeds 2 cm
+//! away reached an image not otherwise found in 284, only images already found in 152 (the
+//! facets show, past a fold, a pair of images the exact surface has merged into one it already
+//! gives) and nothing in 61.
+//!
 //! Convergence: `|grad L| <= GRADIENT_TOLERANCE * (n1 + n2)` (the gradient is dimensionless: a
 //! difference of `n sin(theta)`), or a Newton step shorter than `STEP_TOLERANCE` times the problem's
 //! size (round-off reached first). A position error `dx` leaves a gradient `~ n dx / distance`, so the
@@ -56,8 +79,9 @@ pub const GRADIENT_TOLERANCE: f64 = 1e-12;
 pub const STEP_TOLERANCE: f64 = 1e-14;
 /// Armijo constant of the line search on `phi = |grad L|^2 / 2`.
 const ARMIJO: f64 = 1e-4;
-/// Backtracking halves the step at most this many times per iteration.
-const MAX_HALVINGS: u32 = 40;
+/// Backtracking halves the step at most this many times per iteration (module docs: converging
+/// solves almost never need more; failing ones, past a fold, need ever more).
+pub const MAX_HALVINGS: u32 = 12;
 /// `grad L` and `Hess L` at one (x, z), with the distances involved.
 struct Local {
     gradient: DVec2,
@@ -225,10 +249,20 @@ pub struct ExactImage {
 /// seen through different parts of the surface.
 pub const EXACT_MERGE_DISTANCE_PER_PATH: f64 = 1e-7;
 
+/// Seeds a failed solve from a linear image is retried from ([`exact_images`]).
+pub const RETRY_SEEDS: u32 = 4;
+/// Their distance from the failed start, in membrane cell diagonals.
+pub const RETRY_RADIUS_PER_CELL_DIAGONAL: f64 = 0.5;
+
 /// The exact images of `point` (cleared into `out`), one solve per linear image in `linear` (in
 /// their order: by facet), started from its sight point: converged solves with a clear path
-/// ([`path_is_clear`]) are kept, merged where they coincide;
-/// blocked ones are dropped (no image there); failed solves keep the linear image, flagged.
+/// ([`path_is_clear`]) are kept, merged where they coincide; blocked ones are dropped (no image
+/// there). A failed solve is retried from [`RETRY_SEEDS`] seeds on a circle of
+/// [`RETRY_RADIUS_PER_CELL_DIAGONAL`] membrane cell diagonals around its start (module docs),
+/// in order, until one reaches a clear stationary point not already kept: that is the linear
+/// image's exact image. If the retries reach only images already kept, the linear image is one of
+/// those seen through the facets (past a fold) and adds none; if they reach none, the linear
+/// image is kept, flagged as a Newton fallback.
 pub fn exact_images(
     field: &RefractionField,
     point: DVec3,
@@ -243,25 +277,58 @@ pub fn exact_images(
         n_above: field.setup.n_above as f64,
         n_below: field.setup.n_below as f64,
     };
+    let grid = field.membrane.grid;
+    let retry_radius_m =
+        RETRY_RADIUS_PER_CELL_DIAGONAL * grid.cell_size_x_m().hypot(grid.cell_size_z_m());
+    // A converged solve's sight point: Some(true) a new clear image, Some(false) one already kept,
+    // None blocked.
+    let classify = |out: &[ExactImage], s: DVec3| {
+        let tolerance_m =
+            EXACT_MERGE_DISTANCE_PER_PATH * ((s - problem.eye).length() + (point - s).length());
+        let duplicate = out
+            .iter()
+            .any(|k| !k.newton_fallback && (k.sight_point - s).length() <= tolerance_m);
+        if duplicate {
+            Some(false)
+        } else {
+            path_is_clear(field.surface, &problem, s).then_some(true)
+        }
+    };
     for image in linear {
         let start = DVec2::new(image.sight_point.x as f64, image.sight_point.z as f64);
-        match solve_sight_point(&problem, start) {
-            Some(solved) => {
-                let s = solved.sight_point;
-                let tolerance_m = EXACT_MERGE_DISTANCE_PER_PATH
-                    * ((s - problem.eye).length() + (point - s).length());
-                let duplicate = out
-                    .iter()
-                    .any(|k| !k.newton_fallback && (k.sight_point - s).length() <= tolerance_m);
-                if !duplicate && path_is_clear(field.surface, &problem, s) {
-                    out.push(ExactImage {
-                        facet: image.facet,
-                        sight_point: s,
-                        extrapolated: false,
-                        newton_fallback: false,
-                    });
-                }
+        let exact = |sight_point| ExactImage {
+            facet: image.facet,
+            sight_point,
+            extrapolated: false,
+            newton_fallback: false,
+        };
+        if let Some(solved) = solve_sight_point(&problem, start) {
+            if classify(out, solved.sight_point) == Some(true) {
+                out.push(exact(solved.sight_point));
             }
+            continue;
+        }
+        let mut reached_kept = false;
+        let mut found = None;
+        for k in 0..RETRY_SEEDS {
+            // Evenly around the circle, turned off the grid's axes.
+            let angle = 0.3 + std::f64::consts::TAU * k as f64 / RETRY_SEEDS as f64;
+            let seed = start + DVec2::new(angle.cos(), angle.sin()) * retry_radius_m;
+            let Some(solved) = solve_sight_point(&problem, seed) else {
+                continue;
+            };
+            match classify(out, solved.sight_point) {
+                Some(true) => {
+                    found = Some(solved.sight_point);
+                    break;
+                }
+                Some(false) => reached_kept = true,
+                None => {}
+            }
+        }
+        match found {
+            Some(s) => out.push(exact(s)),
+            None if reached_kept => {}
             None => out.push(ExactImage {
                 facet: image.facet,
                 sight_point: image.sight_point.as_dvec3(),

@@ -176,6 +176,13 @@ pub fn of_water<'a>(
     }
 }
 
+/// `|(d.x, d.z)|`: a square root, not `hypot` (whose care for overflow costs several times as
+/// much, and a walk asks for it at every start; metres never come near overflow).
+#[inline(always)]
+fn horizontal_length(d: DVec3) -> f64 {
+    (d.x * d.x + d.z * d.z).sqrt()
+}
+
 /// The first zero of the lower bound `f + df s - k s^2 / 2` (f >= 0), infinite when it has none.
 #[inline]
 fn parabola_zero(f: f64, df: f64, k: f64) -> f64 {
@@ -285,7 +292,7 @@ impl ExactSurface<'_> {
             t_min,
             t_max,
         )?;
-        let horizontal = direction.x.hypot(direction.z);
+        let horizontal = horizontal_length(direction);
         let lipschitz = direction.y.abs() + self.slope_bound * horizontal;
         let clearance = |t: f64, steps: &mut RootSteps| {
             steps.evaluations += 1;
@@ -381,7 +388,7 @@ impl ExactSurface<'_> {
     /// `check.tolerance_m`. First the shortcut [`Self::segment_clear_by_slope`], then the walk.
     pub fn segment_stays(&self, from: DVec3, to: DVec3, side: f64, check: &PathCheck) -> bool {
         let d = to - from;
-        let horizontal = d.x.hypot(d.z);
+        let horizontal = horizontal_length(d);
         if horizontal <= check.guard_m {
             // Every point of the segment is within the guard.
             return true;
@@ -408,7 +415,7 @@ impl ExactSurface<'_> {
         side: f64,
         check: &PathCheck,
     ) -> bool {
-        let horizontal = d.x.hypot(d.z);
+        let horizontal = horizontal_length(d);
         // G over the segment's footprint (which holds `from` and every point compared).
         let slope = if self.local_bounds.is_none() {
             self.slope_bound
@@ -522,7 +529,7 @@ impl<'s, 'a> Walk<'s, 'a> {
         side: f64,
         tolerance: f64,
     ) -> Self {
-        let horizontal = d.x.hypot(d.z);
+        let horizontal = horizontal_length(d);
         let tile_m = surface.local_bounds.as_ref().map(|l| l.ripples.tile_m());
         let mut walk = Walk {
             surface,
@@ -571,7 +578,7 @@ impl<'s, 'a> Walk<'s, 'a> {
     /// that is much longer than the longer piece's.
     #[inline(never)]
     fn start_piece(&mut self, s: f64, f: f64, df: f64) {
-        let horizontal = self.d.x.hypot(self.d.z);
+        let horizontal = horizontal_length(self.d);
         let mut len = (self.end - s).min(self.next_len.max(self.min_len));
         loop {
             let (a, b) = (self.origin + self.d * s, self.origin + self.d * (s + len));
