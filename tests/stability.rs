@@ -201,7 +201,7 @@ fn stability_oracle_only_reports_the_multi_image_share_per_frame() {
     for row in &rows {
         let (sampled, total) = (number(row, "sampled"), number(row, "under_water_vertices"));
         assert!(
-            sampled <= 50.0 && sampled >= 25.0 && total > sampled,
+            (25.0..=50.0).contains(&sampled) && total > sampled,
             "{row:?}"
         );
         assert_eq!(

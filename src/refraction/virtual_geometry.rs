@@ -549,6 +549,9 @@ fn append_above(
 
 /// The part under water at virtual positions, with the virtual positions of its vertices on the
 /// water line raised by the skirt (after any subdivision: the skirt is not an image to refine).
+// Eight distinct inputs and outputs of one object's drawing, each used in its own step; a struct
+// gathering them would only rename them at the one call site.
+#[allow(clippy::too_many_arguments)]
 fn append_under(
     object: u32,
     split: &SplitMesh,
