@@ -33,7 +33,7 @@ use super::{write_unsynced, OutputError, Unsynced};
 use crate::camera::Camera;
 use crate::draw::{RenderedFrame, NO_OBJECT};
 pub use decode::{read_channels, read_frame_and_channels, read_frame_exr};
-use encode::{push_f16, push_f32, ChannelSource};
+use encode::{push_f16_all, push_f32, ChannelSource};
 
 /// What the header records about a frame besides its pixels.
 #[derive(Clone, Debug, PartialEq)]
@@ -270,9 +270,10 @@ fn frame_channels<'a>(
         list.push(if half_beauty {
             // Saturated at the largest half (65504) rather than made infinite.
             ChannelSource::f16(name, move |y, out| {
-                frame.beauty_rgba[row(y)]
-                    .iter()
-                    .for_each(|p| push_f16(out, p[c].min(HALF_MAX)))
+                push_f16_all(
+                    out,
+                    frame.beauty_rgba[row(y)].iter().map(|p| p[c].min(HALF_MAX)),
+                )
             })
         } else {
             ChannelSource::f32(name, move |y, out| {
@@ -303,9 +304,12 @@ fn frame_channels<'a>(
         .filter(|&(_, bit)| has(Layer::of_flag(bit)))
     {
         list.push(ChannelSource::f16(name, move |y, out| {
-            frame.flags[row(y)]
-                .iter()
-                .for_each(|f| push_f16(out, if f & bit != 0 { 1.0 } else { 0.0 }))
+            push_f16_all(
+                out,
+                frame.flags[row(y)]
+                    .iter()
+                    .map(|f| if f & bit != 0 { 1.0 } else { 0.0 }),
+            )
         }));
     }
     if !frame.apparent_depth_m.is_empty() && has(Layer::ApparentDepth) {
@@ -336,9 +340,7 @@ fn frame_channels<'a>(
     let has_water = !frame.water_matte.is_empty();
     if has_water && has(Layer::WaterMatte) {
         list.push(ChannelSource::f16(WATER_MATTE, move |y, out| {
-            frame.water_matte[row(y)]
-                .iter()
-                .for_each(|&m| push_f16(out, m))
+            push_f16_all(out, frame.water_matte[row(y)].iter().copied())
         }));
     }
     // The effects: what is seen without the water, the refracted share, the reflected sky (not

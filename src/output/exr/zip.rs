@@ -1,6 +1,13 @@
-//! EXR `zip` and `zips` chunks compressed here, with libdeflate, instead of by the `exr` crate
-//! (miniz_oxide at level 4, 3-5x slower on snell's layers for files 0.1-0.6 % smaller: deflate was
-//! half of a written frame's CPU time, issue 14 point 4).
+//! EXR `zip` and `zips` chunks compressed here, with zlib-rs at level 1, instead of by the `exr`
+//! crate (miniz_oxide at level 4, 3-5x slower on snell's layers for files 0.1-0.6 % smaller:
+//! deflate was half of a written frame's CPU time, issue 14 point 4).
+//!
+//! Why zlib-rs level 1 (zlib-ng's `deflate_quick`: greedy matches, the fixed Huffman code) and
+//! not libdeflate level 1, which this module used before: on the 16-line chunks of a 1280x720
+//! `pool.toml` `comp` frame (31.3 MB of samples, split and predicted) libdeflate level 1 took
+//! 93-95 ms on one thread for 7.11 MB, zlib-rs level 1 49 ms for 7.83 MB (+10 %); zlib-rs levels 2
+//! and 3 took 113 and 126 ms (7.22 and 7.10 MB), its RLE and Huffman-only strategies 110 and
+//! 155 ms (13.3 and 16.5 MB) (README, "Where a written frame's time goes").
 //!
 //! OpenEXR's ZIP compression of a chunk (`ImfZip.cpp`): the chunk's little-endian bytes are split
 //! into the even-indexed bytes followed by the odd-indexed ones, each byte is replaced by its
@@ -12,17 +19,13 @@
 
 use std::cell::RefCell;
 
-/// libdeflate's compression level. Level 1 against 4 and 6 on 1280x720 `pool.toml` frames
-/// (README, "Where a written frame's time goes"): the fastest for files a few tenths of a
-/// percent larger.
+/// zlib-rs's compression level: 1, its fastest that compresses (see above).
 pub(crate) const LEVEL: i32 = 1;
 
-/// Each encoding thread's compressor and scratch, kept from chunk to chunk: fresh buffers for
-/// every chunk cost page faults on zeroed memory (8 % of a written frame's CPU time before).
+/// Each encoding thread's scratch, kept from chunk to chunk: fresh buffers for every chunk cost
+/// page faults on zeroed memory (8 % of a written frame's CPU time before).
 struct Work {
-    compressor: libdeflater::Compressor,
-    /// The chunk's bytes separated, then predicted, then compressed.
-    separated: Vec<u8>,
+    /// The chunk's bytes separated and predicted, then compressed.
     predicted: Vec<u8>,
     packed: Vec<u8>,
 }
@@ -42,58 +45,59 @@ pub(crate) fn append_chunk(native: &[u8], out: &mut Vec<u8>) {
     WORK.with(|work| {
         let mut work = work.borrow_mut();
         let work = work.get_or_insert_with(|| Work {
-            compressor: libdeflater::Compressor::new(
-                libdeflater::CompressionLvl::new(LEVEL).expect("a valid libdeflate level"),
-            ),
-            separated: Vec::new(),
             predicted: Vec::new(),
             packed: Vec::new(),
         });
-        separate_bytes(native, &mut work.separated);
-        predict(&work.separated, &mut work.predicted);
-        let bound = work.compressor.zlib_compress_bound(native.len());
+        separate_and_predict(native, &mut work.predicted);
+        let bound = zlib_rs::compress_bound(native.len());
         if work.packed.len() < bound {
             work.packed.resize(bound, 0);
         }
-        match work
-            .compressor
-            .zlib_compress(&work.predicted, &mut work.packed)
-        {
-            Ok(size) if size < native.len() => out.extend_from_slice(&work.packed[..size]),
-            // Not smaller (or no room, which libdeflate reports for incompressible input).
-            _ => out.extend_from_slice(native),
+        let config = zlib_rs::DeflateConfig {
+            level: LEVEL,
+            ..zlib_rs::DeflateConfig::default()
+        };
+        let (packed, code) = zlib_rs::compress_slice(&mut work.packed, &work.predicted, config);
+        if code == zlib_rs::ReturnCode::Ok && packed.len() < native.len() {
+            out.extend_from_slice(packed);
+        } else {
+            // Not smaller (or the compressor failed, which it does not with room for the bound).
+            out.extend_from_slice(native);
         }
     })
 }
 
-/// `out` = the even-indexed bytes of `bytes`, then the odd-indexed ones.
-fn separate_bytes(bytes: &[u8], out: &mut Vec<u8>) {
+/// OpenEXR's byte split and predictor in one pass: `out` = the even-indexed bytes of `bytes`
+/// followed by the odd-indexed ones (the split), each replaced by its difference to the byte
+/// before it in that sequence plus 128, mod 256 (the predictor; the first byte kept). One pass
+/// over the chunk instead of two, and no buffer between them: a split byte's predecessor is two
+/// bytes back in `bytes`, except for the first odd byte, whose predecessor is the last even one.
+fn separate_and_predict(bytes: &[u8], out: &mut Vec<u8>) {
+    let n = bytes.len();
     out.clear();
-    out.resize(bytes.len(), 0);
-    let (first, second) = out.split_at_mut(bytes.len().div_ceil(2));
-    for ((pair, a), b) in bytes
+    out.resize(n, 0);
+    if n < 2 {
+        out.copy_from_slice(bytes);
+        return;
+    }
+    let half = n.div_ceil(2);
+    let (evens, odds) = out.split_at_mut(half);
+    evens[0] = bytes[0];
+    // evens[k] = bytes[2k] - bytes[2k-2], odds[k] = bytes[2k+1] - bytes[2k-1] (k >= 1).
+    for ((pair, before), (even, odd)) in bytes[2..]
         .chunks_exact(2)
-        .zip(first.iter_mut())
-        .zip(second.iter_mut())
+        .zip(bytes.chunks_exact(2))
+        .zip(evens[1..].iter_mut().zip(odds[1..].iter_mut()))
     {
-        *a = pair[0];
-        *b = pair[1];
+        *even = pair[0].wrapping_sub(before[0]).wrapping_add(128);
+        *odd = pair[1].wrapping_sub(before[1]).wrapping_add(128);
     }
-    if bytes.len() % 2 == 1 {
-        first[first.len() - 1] = bytes[bytes.len() - 1];
+    if n % 2 == 1 {
+        // The last even byte has no odd partner, so the loop above stopped before it.
+        evens[half - 1] = bytes[n - 1].wrapping_sub(bytes[n - 3]).wrapping_add(128);
     }
-}
-
-/// `out[i] = bytes[i] - bytes[i - 1] + 128` (mod 256), `out[0] = bytes[0]`.
-fn predict(bytes: &[u8], out: &mut Vec<u8>) {
-    out.clear();
-    out.resize(bytes.len(), 0);
-    if let Some(&first) = bytes.first() {
-        out[0] = first;
-        for ((o, &b), &a) in out[1..].iter_mut().zip(&bytes[1..]).zip(bytes) {
-            *o = b.wrapping_sub(a).wrapping_add(128);
-        }
-    }
+    let last_even = bytes[2 * (half - 1)];
+    odds[0] = bytes[1].wrapping_sub(last_even).wrapping_add(128);
 }
 
 #[cfg(test)]
@@ -221,12 +225,24 @@ mod tests {
     fn the_transform_is_openexrs() {
         // ImfZip.cpp on bytes 10 20 30 40 50: separated 10 30 50 20 40, predicted
         // 10, 30-10+128, 50-30+128, 20-50+128 (mod 256), 40-20+128.
-        let mut separated = Vec::new();
-        separate_bytes(&[10, 20, 30, 40, 50], &mut separated);
-        assert_eq!(separated, [10, 30, 50, 20, 40]);
         let mut predicted = Vec::new();
-        predict(&separated, &mut predicted);
+        separate_and_predict(&[10, 20, 30, 40, 50], &mut predicted);
         assert_eq!(predicted, [10, 148, 148, 98, 148]);
+        // Even length: separated 10 30 20 40.
+        separate_and_predict(&[10, 20, 30, 40], &mut predicted);
+        assert_eq!(predicted, [10, 148, 118, 148]);
+        // Wrapping: separated 250 5 0 (mod 256: 5-250+128 = 139, 0-5+128 = 123).
+        separate_and_predict(&[250, 0, 5], &mut predicted);
+        assert_eq!(predicted, [250, 139, 123]);
+        for short in [&[][..], &[7][..], &[7, 9][..]] {
+            separate_and_predict(short, &mut predicted);
+            let expected: Vec<u8> = match short {
+                [] => vec![],
+                [a] => vec![*a],
+                _ => vec![7, 130],
+            };
+            assert_eq!(predicted, expected, "{short:?}");
+        }
     }
 
     #[test]
@@ -245,5 +261,146 @@ mod tests {
         // And again on a thread whose compressor and scratch were used for other chunks.
         compress_chunk(samples(999, 5, false));
         assert_eq!(compress_chunk(native), here);
+    }
+
+    /// This thread's CPU seconds (not waiting for a core: the machine is shared).
+    fn thread_cpu_secs() -> f64 {
+        let mut time = libc::timespec {
+            tv_sec: 0,
+            tv_nsec: 0,
+        };
+        // SAFETY: clock_gettime fills the struct it is given; the clock id is a valid constant.
+        unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut time) };
+        time.tv_sec as f64 + time.tv_nsec as f64 * 1e-9
+    }
+
+    /// What each layer of a frame costs to encode (issue 14 point 4): the file's channels grouped
+    /// by layer (`R, G, B, A` as the beauty), each group's 16-line (ZIP) and 1-line (ZIPS) chunks
+    /// built as the writer builds them (rows of each channel's samples, name order), then per
+    /// group the CPU of the split and predictor alone, of the whole ZIP chunk (split, predictor and
+    /// libdeflate) and of the `exr` crate's RLE (1-line chunks, with ZIPS's row), and the bytes each gives; best of 5 on one thread.
+    /// `SNELL_LAYER_COSTS_EXR=frame.exr cargo test --release --lib
+    /// output::exr::zip::tests::layer_costs -- --ignored --nocapture` (any compression: the
+    /// samples are read back first).
+    #[test]
+    #[ignore = "tuning aid"]
+    fn layer_costs() {
+        let path = std::env::var("SNELL_LAYER_COSTS_EXR").expect("SNELL_LAYER_COSTS_EXR=frame.exr");
+        let file = crate::output::exr::read_channels(std::path::Path::new(&path)).unwrap();
+        let (width, height) = (file.width, file.height);
+        let mut groups: std::collections::BTreeMap<String, Vec<&str>> = Default::default();
+        for name in file.channels.keys() {
+            let layer = match name.split_once('.') {
+                Some((layer, _)) => layer,
+                None if ["R", "G", "B", "A"].contains(&name.as_str()) => "beauty",
+                None => name,
+            };
+            groups.entry(layer.to_string()).or_default().push(name);
+        }
+        groups.insert(
+            "(the whole file)".into(),
+            file.channels.keys().map(String::as_str).collect(),
+        );
+        let sample = |name: &str, i: usize, out: &mut Vec<u8>| {
+            let value = file.channels[name][i];
+            match file.types[name] {
+                "f16" => out.extend_from_slice(
+                    &::exr::prelude::f16::from_f32(value).to_bits().to_le_bytes(),
+                ),
+                "f32" => out.extend_from_slice(&value.to_le_bytes()),
+                _ => out.extend_from_slice(&(value as u32).to_le_bytes()),
+            }
+        };
+        let types_of = |names: &[&str]| -> Vec<(String, SampleType)> {
+            names
+                .iter()
+                .map(|name| {
+                    let t = match file.types[*name] {
+                        "f16" => SampleType::F16,
+                        "f32" => SampleType::F32,
+                        _ => SampleType::U32,
+                    };
+                    (name.to_string(), t)
+                })
+                .collect()
+        };
+        println!("| layer | lines | samples MB | ZIP MB | split+predict ms | ZIP ms (all of it) | ZIP MB/s | RLE MB | RLE ms |");
+        println!("|---|---|---|---|---|---|---|---|---|");
+        for (layer, names) in &groups {
+            for lines in [16, 1] {
+                let chunks: Vec<Vec<u8>> = (0..height.div_ceil(lines))
+                    .map(|chunk| {
+                        let mut bytes = Vec::new();
+                        for y in chunk * lines..((chunk + 1) * lines).min(height) {
+                            for name in names {
+                                (y * width..(y + 1) * width)
+                                    .for_each(|i| sample(name, i, &mut bytes));
+                            }
+                        }
+                        bytes
+                    })
+                    .collect();
+                let raw: usize = chunks.iter().map(Vec::len).sum();
+                let best = |f: &mut dyn FnMut() -> usize| {
+                    (0..5)
+                        .map(|_| {
+                            let start = thread_cpu_secs();
+                            let size = f();
+                            (thread_cpu_secs() - start, size)
+                        })
+                        .min_by(|a, b| a.0.total_cmp(&b.0))
+                        .unwrap()
+                };
+                let mut scratch = Vec::new();
+                let (predict_secs, _) = best(&mut || {
+                    chunks
+                        .iter()
+                        .for_each(|c| separate_and_predict(c, &mut scratch));
+                    0
+                });
+                let mut out = Vec::new();
+                let (zip_secs, zip_size) = best(&mut || {
+                    chunks
+                        .iter()
+                        .map(|c| {
+                            out.clear();
+                            append_chunk(c, &mut out);
+                            out.len()
+                        })
+                        .sum()
+                });
+                let rle = if lines == 1 {
+                    let types = types_of(names);
+                    let types: Vec<(&str, SampleType)> =
+                        types.iter().map(|(n, t)| (n.as_str(), *t)).collect();
+                    let header = header(width, height, &types, Compression::RLE);
+                    let (secs, size) = best(&mut || {
+                        chunks
+                            .iter()
+                            .enumerate()
+                            .map(|(y, c)| {
+                                // RLE chunks are one line each, as ZIPS's.
+                                let section = IntegerBounds::new(Vec2(0, y as i32), Vec2(width, 1));
+                                let packed = Compression::RLE
+                                    .compress_image_section_to_le(&header, c.clone(), section)
+                                    .unwrap();
+                                packed.len().min(c.len())
+                            })
+                            .sum()
+                    });
+                    format!("{:.2} | {:.1}", size as f64 / 1e6, secs * 1e3)
+                } else {
+                    " | ".to_string()
+                };
+                println!(
+                    "| {layer} | {lines} | {:.2} | {:.2} | {:.1} | {:.1} | {:.0} | {rle} |",
+                    raw as f64 / 1e6,
+                    zip_size as f64 / 1e6,
+                    predict_secs * 1e3,
+                    zip_secs * 1e3,
+                    raw as f64 / 1e6 / zip_secs
+                );
+            }
+        }
     }
 }
