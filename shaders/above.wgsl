@@ -11,36 +11,23 @@ struct AboveVarying {
 
 @vertex
 fn vs_above(@builtin(vertex_index) vertex_index: u32) -> AboveVarying {
-    let triangle = vertex_index / CORNERS_PER_TRIANGLE;
-    let corners = triangle_of(triangle);
-    let clip = array<vec4<f32>, 3>(
-        frame.clip_from_world * vec4<f32>(vertex_vec3(corners.x, TRUE_VERTEX_WORDS, 0u), 1.0),
-        frame.clip_from_world * vec4<f32>(vertex_vec3(corners.y, TRUE_VERTEX_WORDS, 0u), 1.0),
-        frame.clip_from_world * vec4<f32>(vertex_vec3(corners.z, TRUE_VERTEX_WORDS, 0u), 1.0),
-    );
     var out: AboveVarying;
-    out.clip = clipped_corner(clip[0], clip[1], clip[2], vertex_index % CORNERS_PER_TRIANGLE);
-    out.triangle = triangle;
+    out.triangle = vertex_index / CORNERS_PER_TRIANGLE;
+    out.clip = pulled_corner(vertex_index, triangle_of(out.triangle), TRUE_VERTEX_WORDS);
     return out;
 }
 
 @fragment
 fn fs_above(in: AboveVarying) -> DepthTargets {
     let corners = triangle_of(in.triangle);
-    let a = corners.x;
-    let b = corners.y;
-    let c = corners.z;
     let s = TRUE_VERTEX_WORDS;
-    let world_a = vertex_vec3(a, s, 0u);
-    let world_b = vertex_vec3(b, s, 0u);
-    let world_c = vertex_vec3(c, s, 0u);
-    let weights = pixel_weights(in.clip.xy, world_a, world_b, world_c);
-    let world_position = weighted3(weights, world_a, world_b, world_c);
-    let previous_position = weighted3(weights, vertex_vec3(a, s, 3u), vertex_vec3(b, s, 3u), vertex_vec3(c, s, 3u));
-    let normal = normalize(weighted3(weights, vertex_vec3(a, s, 6u), vertex_vec3(b, s, 6u), vertex_vec3(c, s, 6u)));
-    let uv = weighted2(weights, vertex_vec2(a, s, 9u), vertex_vec2(b, s, 9u), vertex_vec2(c, s, 9u));
+    let weights = pulled_weights(in.clip.xy, corners, s);
+    let world_position = pulled3(weights, corners, s, 0u);
+    let previous_position = pulled3(weights, corners, s, 3u);
+    let normal = normalize(pulled3(weights, corners, s, 6u));
+    let uv = pulled2(weights, corners, s, 9u);
     // The provoking (first) vertex's material, as a flat attribute had it.
-    let material = vertex_word(a, s, 11u);
+    let material = vertex_word(corners.x, s, 11u);
     var out: Targets;
     out.beauty = vec4<f32>(shade_above(albedo(material, uv), normal), 1.0);
     let depth_m = view_depth(world_position);

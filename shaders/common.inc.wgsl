@@ -206,15 +206,36 @@ fn vertex_vec3(vertex: u32, stride: u32, word: u32) -> vec3<f32> {
 fn triangle_of(triangle: u32) -> vec3<u32> {
     return vec3<u32>(triangle_vertices[triangle * 3u], triangle_vertices[triangle * 3u + 1u], triangle_vertices[triangle * 3u + 2u]);
 }
-// Each attribute `a` of the triangle's corners weighted by `weights`.
-fn weighted3(weights: vec3<f32>, a: vec3<f32>, b: vec3<f32>, c: vec3<f32>) -> vec3<f32> {
-    return a * weights.x + b * weights.y + c * weights.z;
+// The vertex indices of triangle `triangle` of a soup (three vertices each, in order).
+fn soup_triangle(triangle: u32) -> vec3<u32> {
+    return vec3<u32>(triangle * 3u) + vec3<u32>(0u, 1u, 2u);
 }
-fn weighted2(weights: vec3<f32>, a: vec2<f32>, b: vec2<f32>, c: vec2<f32>) -> vec2<f32> {
-    return a * weights.x + b * weights.y + c * weights.z;
+// The attribute at word `word` of the vertices `corners` (of `stride` words each) weighted by
+// `weights` (pulled_weights).
+fn pulled3(weights: vec3<f32>, corners: vec3<u32>, stride: u32, word: u32) -> vec3<f32> {
+    return vertex_vec3(corners.x, stride, word) * weights.x + vertex_vec3(corners.y, stride, word) * weights.y + vertex_vec3(corners.z, stride, word) * weights.z;
 }
-fn weighted1(weights: vec3<f32>, a: f32, b: f32, c: f32) -> f32 {
-    return dot(weights, vec3<f32>(a, b, c));
+fn pulled2(weights: vec3<f32>, corners: vec3<u32>, stride: u32, word: u32) -> vec2<f32> {
+    return vertex_vec2(corners.x, stride, word) * weights.x + vertex_vec2(corners.y, stride, word) * weights.y + vertex_vec2(corners.z, stride, word) * weights.z;
+}
+fn pulled1(weights: vec3<f32>, corners: vec3<u32>, stride: u32, word: u32) -> f32 {
+    let values = bitcast<vec3<f32>>(vec3<u32>(vertex_word(corners.x, stride, word), vertex_word(corners.y, stride, word), vertex_word(corners.z, stride, word)));
+    return dot(weights, values);
+}
+
+// Corner `vertex_index % CORNERS_PER_TRIANGLE` (clipped_corner) of the triangle of vertices
+// `corners` (of `stride` words each, the position drawn at words 0-2).
+fn pulled_corner(vertex_index: u32, corners: vec3<u32>, stride: u32) -> vec4<f32> {
+    let a = frame.clip_from_world * vec4<f32>(vertex_vec3(corners.x, stride, 0u), 1.0);
+    let b = frame.clip_from_world * vec4<f32>(vertex_vec3(corners.y, stride, 0u), 1.0);
+    let c = frame.clip_from_world * vec4<f32>(vertex_vec3(corners.z, stride, 0u), 1.0);
+    return clipped_corner(a, b, c, vertex_index % CORNERS_PER_TRIANGLE);
+}
+
+// The weights (pixel_weights) of the triangle of vertices `corners` (of `stride` words each, the
+// position drawn at words 0-2) at the fragment at `pixel`.
+fn pulled_weights(pixel: vec2<f32>, corners: vec3<u32>, stride: u32) -> vec3<f32> {
+    return pixel_weights(pixel, vertex_vec3(corners.x, stride, 0u), vertex_vec3(corners.y, stride, 0u), vertex_vec3(corners.z, stride, 0u));
 }
 
 // A clip position with w = 1 whose window position is `clip`'s in the whole frame, on the

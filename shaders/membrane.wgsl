@@ -16,17 +16,9 @@ struct MembraneVarying {
 
 @vertex
 fn vs_membrane(@builtin(vertex_index) vertex_index: u32) -> MembraneVarying {
-    let triangle = vertex_index / CORNERS_PER_TRIANGLE;
-    let corners = triangle_of(triangle);
-    let s = MEMBRANE_VERTEX_WORDS;
-    let clip = array<vec4<f32>, 3>(
-        frame.clip_from_world * vec4<f32>(vertex_vec3(corners.x, s, 0u), 1.0),
-        frame.clip_from_world * vec4<f32>(vertex_vec3(corners.y, s, 0u), 1.0),
-        frame.clip_from_world * vec4<f32>(vertex_vec3(corners.z, s, 0u), 1.0),
-    );
     var out: MembraneVarying;
-    out.clip = clipped_corner(clip[0], clip[1], clip[2], vertex_index % CORNERS_PER_TRIANGLE);
-    out.triangle = triangle;
+    out.triangle = vertex_index / CORNERS_PER_TRIANGLE;
+    out.clip = pulled_corner(vertex_index, triangle_of(out.triangle), MEMBRANE_VERTEX_WORDS);
     return out;
 }
 
@@ -34,12 +26,9 @@ fn vs_membrane(@builtin(vertex_index) vertex_index: u32) -> MembraneVarying {
 fn fs_membrane(in: MembraneVarying) -> DepthTargets {
     let corners = triangle_of(in.triangle);
     let s = MEMBRANE_VERTEX_WORDS;
-    let world_a = vertex_vec3(corners.x, s, 0u);
-    let world_b = vertex_vec3(corners.y, s, 0u);
-    let world_c = vertex_vec3(corners.z, s, 0u);
-    let weights = pixel_weights(in.clip.xy, world_a, world_b, world_c);
-    let world_position = weighted3(weights, world_a, world_b, world_c);
-    let normal = normalize(weighted3(weights, vertex_vec3(corners.x, s, 3u), vertex_vec3(corners.y, s, 3u), vertex_vec3(corners.z, s, 3u)));
+    let weights = pulled_weights(in.clip.xy, corners, s);
+    let world_position = pulled3(weights, corners, s, 0u);
+    let normal = normalize(pulled3(weights, corners, s, 3u));
     let to_surface = world_position - frame.eye.xyz;
     let distance_m = length(to_surface);
     let incident = to_surface / distance_m;

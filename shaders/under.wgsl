@@ -13,46 +13,28 @@ struct UnderVarying {
 
 @vertex
 fn vs_under(@builtin(vertex_index) vertex_index: u32) -> UnderVarying {
-    let triangle = vertex_index / CORNERS_PER_TRIANGLE;
-    let first = triangle * 3u;
-    let s = VIRTUAL_VERTEX_WORDS;
-    let clip = array<vec4<f32>, 3>(
-        frame.clip_from_world * vec4<f32>(vertex_vec3(first, s, 0u), 1.0),
-        frame.clip_from_world * vec4<f32>(vertex_vec3(first + 1u, s, 0u), 1.0),
-        frame.clip_from_world * vec4<f32>(vertex_vec3(first + 2u, s, 0u), 1.0),
-    );
     var out: UnderVarying;
-    out.clip = clipped_corner(clip[0], clip[1], clip[2], vertex_index % CORNERS_PER_TRIANGLE);
-    out.triangle = triangle;
+    out.triangle = vertex_index / CORNERS_PER_TRIANGLE;
+    out.clip = pulled_corner(vertex_index, soup_triangle(out.triangle), VIRTUAL_VERTEX_WORDS);
     return out;
 }
 
 @fragment
 fn fs_under(in: UnderVarying) -> DepthTargets {
-    let a = in.triangle * 3u;
-    let b = a + 1u;
-    let c = a + 2u;
+    let corners = soup_triangle(in.triangle);
     let s = VIRTUAL_VERTEX_WORDS;
-    let virtual_a = vertex_vec3(a, s, 0u);
-    let virtual_b = vertex_vec3(b, s, 0u);
-    let virtual_c = vertex_vec3(c, s, 0u);
     // Weights on the virtual triangle, the one rasterised: the attributes vary over it as the
     // GPU's perspective-correct interpolation would vary them.
-    let weights = pixel_weights(in.clip.xy, virtual_a, virtual_b, virtual_c);
-    let virtual_position = weighted3(weights, virtual_a, virtual_b, virtual_c);
-    let previous_position = weighted3(weights, vertex_vec3(a, s, 3u), vertex_vec3(b, s, 3u), vertex_vec3(c, s, 3u));
-    let true_position = weighted3(weights, vertex_vec3(a, s, 6u), vertex_vec3(b, s, 6u), vertex_vec3(c, s, 6u));
-    let normal = normalize(weighted3(weights, vertex_vec3(a, s, 9u), vertex_vec3(b, s, 9u), vertex_vec3(c, s, 9u)));
-    let uv = weighted2(weights, vertex_vec2(a, s, 12u), vertex_vec2(b, s, 12u), vertex_vec2(c, s, 12u));
-    let water_path_m = weighted1(
-        weights,
-        bitcast<f32>(vertex_word(a, s, 15u)),
-        bitcast<f32>(vertex_word(b, s, 15u)),
-        bitcast<f32>(vertex_word(c, s, 15u)),
-    );
+    let weights = pulled_weights(in.clip.xy, corners, s);
+    let virtual_position = pulled3(weights, corners, s, 0u);
+    let previous_position = pulled3(weights, corners, s, 3u);
+    let true_position = pulled3(weights, corners, s, 6u);
+    let normal = normalize(pulled3(weights, corners, s, 9u));
+    let uv = pulled2(weights, corners, s, 12u);
+    let water_path_m = pulled1(weights, corners, s, 15u);
     // The provoking (first) vertex's material and flags, as flat attributes had them.
-    let material = vertex_word(a, s, 14u);
-    let flags = vertex_word(a, s, 16u);
+    let material = vertex_word(corners.x, s, 14u);
+    let flags = vertex_word(corners.x, s, 16u);
     let colour = shade_under(albedo(material, uv), normal, true_position, max(water_path_m, 0.0));
     var out: Targets;
     out.beauty = vec4<f32>(colour, 1.0);
