@@ -25,7 +25,7 @@ fn fs_above(in: AboveVarying) -> DepthTargets {
     let world_position = pulled3(weights, corners, s, 0u);
     let previous_position = pulled3(weights, corners, s, 3u);
     let normal = normalize(pulled3(weights, corners, s, 6u));
-    let uv = pulled2(weights, corners, s, 9u);
+    let uv = pulled_texture_coordinates(in.clip.xy, weights, corners, s, 9u);
     // The provoking (first) vertex's material, as a flat attribute had it.
     let material = vertex_word(corners.x, s, 11u);
     var out: Targets;

@@ -129,10 +129,12 @@ fn schlick_reflectance(incident: vec3<f32>, normal: vec3<f32>) -> f32 {
     return r0 + (1.0 - r0) * (m * m * m * m * m);
 }
 
-// Linear albedo of a material at texture coordinates `uv`: tint times the (sRGB-decoded) texture.
-fn albedo(material: u32, uv: vec2<f32>) -> vec3<f32> {
+// Linear albedo of a material at texture coordinates `uv` (a TextureCoordinates: with their
+// change to the next pixel right and down, which choose the mip level): tint times the
+// (sRGB-decoded) texture.
+fn albedo(material: u32, uv: TextureCoordinates) -> vec3<f32> {
     let entry = materials.entries[min(material, MAX_MATERIALS - 1u)];
-    let texel = textureSample(textures, texture_sampler, uv, entry.w);
+    let texel = textureSampleGrad(textures, texture_sampler, uv.at, entry.w, uv.right, uv.down);
     return bitcast<vec3<f32>>(entry.xyz) * texel.xyz;
 }
 
@@ -215,12 +217,39 @@ fn soup_triangle(triangle: u32) -> vec3<u32> {
 fn pulled3(weights: vec3<f32>, corners: vec3<u32>, stride: u32, word: u32) -> vec3<f32> {
     return vertex_vec3(corners.x, stride, word) * weights.x + vertex_vec3(corners.y, stride, word) * weights.y + vertex_vec3(corners.z, stride, word) * weights.z;
 }
-fn pulled2(weights: vec3<f32>, corners: vec3<u32>, stride: u32, word: u32) -> vec2<f32> {
-    return vertex_vec2(corners.x, stride, word) * weights.x + vertex_vec2(corners.y, stride, word) * weights.y + vertex_vec2(corners.z, stride, word) * weights.z;
-}
 fn pulled1(weights: vec3<f32>, corners: vec3<u32>, stride: u32, word: u32) -> f32 {
     let values = bitcast<vec3<f32>>(vec3<u32>(vertex_word(corners.x, stride, word), vertex_word(corners.y, stride, word), vertex_word(corners.z, stride, word)));
     return dot(weights, values);
+}
+
+// Texture coordinates at a fragment, and their change to the next pixel right and down.
+struct TextureCoordinates {
+    at: vec2<f32>,
+    right: vec2<f32>,
+    down: vec2<f32>,
+};
+
+// The texture coordinates at word `word` of the vertices `corners` (of `stride` words each, the
+// position drawn at words 0-2) at the fragment at `pixel`, which has the weights `weights`, and
+// their change to the next pixel right and down, all interpolated at the whole frame's pixel
+// centres. Not the GPU's derivatives: they difference the 2x2 quad's fragments, and Mesa's
+// llvmpipe reads storage buffers as zero in a quad's helper fragments (outside the triangle), so
+// every pixel on a triangle's edge took a far too coarse mip level.
+fn pulled_texture_coordinates(pixel: vec2<f32>, weights: vec3<f32>, corners: vec3<u32>, stride: u32, word: u32) -> TextureCoordinates {
+    let a = vertex_vec3(corners.x, stride, 0u);
+    let b = vertex_vec3(corners.y, stride, 0u);
+    let c = vertex_vec3(corners.z, stride, 0u);
+    let uv_a = vertex_vec2(corners.x, stride, word);
+    let uv_b = vertex_vec2(corners.y, stride, word);
+    let uv_c = vertex_vec2(corners.z, stride, word);
+    let right = pixel_weights(pixel + vec2<f32>(1.0, 0.0), a, b, c);
+    let down = pixel_weights(pixel + vec2<f32>(0.0, 1.0), a, b, c);
+    let at = uv_a * weights.x + uv_b * weights.y + uv_c * weights.z;
+    return TextureCoordinates(
+        at,
+        uv_a * right.x + uv_b * right.y + uv_c * right.z - at,
+        uv_a * down.x + uv_b * down.y + uv_c * down.z - at,
+    );
 }
 
 // Corner `vertex_index % CORNERS_PER_TRIANGLE` (clipped_corner) of the triangle of vertices

@@ -30,7 +30,7 @@ fn fs_under(in: UnderVarying) -> DepthTargets {
     let previous_position = pulled3(weights, corners, s, 3u);
     let true_position = pulled3(weights, corners, s, 6u);
     let normal = normalize(pulled3(weights, corners, s, 9u));
-    let uv = pulled2(weights, corners, s, 12u);
+    let uv = pulled_texture_coordinates(in.clip.xy, weights, corners, s, 12u);
     let water_path_m = pulled1(weights, corners, s, 15u);
     // The provoking (first) vertex's material and flags, as flat attributes had them.
     let material = vertex_word(corners.x, s, 14u);
