@@ -1,46 +1,41 @@
 // Pass a: geometry on the eye's side of the water, drawn at its true positions, depth-tested.
+// Pulled (common.inc.wgsl): crate::draw::TrueVertex is 12 words: position 0-2, previous position
+// 3-5, normal 6-8, uv 9-10, material 11.
 
-struct AboveVertex {
-    @location(0) position: vec3<f32>,
-    @location(1) previous_position: vec3<f32>,
-    @location(2) normal: vec3<f32>,
-    @location(3) uv: vec2<f32>,
-    @location(4) material: u32,
-};
+const TRUE_VERTEX_WORDS: u32 = 12u;
 
 struct AboveVarying {
     @builtin(position) clip: vec4<f32>,
-    @location(0) world_position: vec3<f32>,
-    @location(1) normal: vec3<f32>,
-    @location(2) uv: vec2<f32>,
-    @location(3) @interpolate(flat, either) material: u32,
-    // The clip position now and at t-1 (motion vectors), interpolated perspective-correctly.
-    @location(4) clip_now: vec4<f32>,
-    @location(5) clip_before: vec4<f32>,
+    @location(0) @interpolate(flat, either) triangle: u32,
 };
 
 @vertex
-fn vs_above(vertex: AboveVertex) -> AboveVarying {
+fn vs_above(@builtin(vertex_index) vertex_index: u32) -> AboveVarying {
     var out: AboveVarying;
-    out.clip = frame.clip_from_world * vec4<f32>(vertex.position, 1.0);
-    out.world_position = vertex.position;
-    out.normal = vertex.normal;
-    out.uv = vertex.uv;
-    out.material = vertex.material;
-    out.clip_now = out.clip;
-    out.clip_before = frame.previous_clip_from_world * vec4<f32>(vertex.previous_position, 1.0);
+    out.triangle = vertex_index / CORNERS_PER_TRIANGLE;
+    out.clip = pulled_corner(vertex_index, triangle_of(out.triangle), TRUE_VERTEX_WORDS);
     return out;
 }
 
 @fragment
-fn fs_above(in: AboveVarying) -> Targets {
-    let normal = normalize(in.normal);
+fn fs_above(in: AboveVarying) -> DepthTargets {
+    let corners = triangle_of(in.triangle);
+    let s = TRUE_VERTEX_WORDS;
+    let weights = pulled_weights(in.clip.xy, corners, s);
+    let world_position = pulled3(weights, corners, s, 0u);
+    let previous_position = pulled3(weights, corners, s, 3u);
+    let normal = normalize(pulled3(weights, corners, s, 6u));
+    let uv = pulled_texture_coordinates(in.clip.xy, weights, corners, s, 9u);
+    // The provoking (first) vertex's material, as a flat attribute had it.
+    let material = vertex_word(corners.x, s, 11u);
     var out: Targets;
-    out.beauty = vec4<f32>(shade_above(albedo(in.material, in.uv), normal), 1.0);
-    let depth_m = view_depth(in.world_position);
-    out.position = vec4<u32>(bitcast<vec3<u32>>(in.world_position), bitcast<u32>(depth_m));
-    out.flags = flags_and_object(0u, in.material);
-    let motion = motion_px(in.clip_now, in.clip_before);
+    out.beauty = vec4<f32>(shade_above(albedo(material, uv), normal), 1.0);
+    let depth_m = view_depth(world_position);
+    out.position = vec4<u32>(bitcast<vec3<u32>>(world_position), bitcast<u32>(depth_m));
+    out.flags = flags_and_object(0u, material);
+    let clip_now = frame.clip_from_world * vec4<f32>(world_position, 1.0);
+    let clip_before = frame.previous_clip_from_world * vec4<f32>(previous_position, 1.0);
+    let motion = motion_px(clip_now, clip_before);
     out.extra = vec4<u32>(bitcast<vec2<u32>>(motion), 0u, bitcast<u32>(depth_m));
-    return out;
+    return with_frame_depth(out, world_position);
 }

@@ -129,10 +129,12 @@ fn schlick_reflectance(incident: vec3<f32>, normal: vec3<f32>) -> f32 {
     return r0 + (1.0 - r0) * (m * m * m * m * m);
 }
 
-// Linear albedo of a material at texture coordinates `uv`: tint times the (sRGB-decoded) texture.
-fn albedo(material: u32, uv: vec2<f32>) -> vec3<f32> {
+// Linear albedo of a material at texture coordinates `uv` (a TextureCoordinates: with their
+// change to the next pixel right and down, which choose the mip level): tint times the
+// (sRGB-decoded) texture.
+fn albedo(material: u32, uv: TextureCoordinates) -> vec3<f32> {
     let entry = materials.entries[min(material, MAX_MATERIALS - 1u)];
-    let texel = textureSample(textures, texture_sampler, uv, entry.w);
+    let texel = textureSampleGrad(textures, texture_sampler, uv.at, entry.w, uv.right, uv.down);
     return bitcast<vec3<f32>>(entry.xyz) * texel.xyz;
 }
 
@@ -169,4 +171,233 @@ fn motion_px(clip_now: vec4<f32>, clip_before: vec4<f32>) -> vec2<f32> {
     }
     let delta = clip_now.xy / clip_now.w - clip_before.xy / clip_before.w;
     return vec2<f32>(delta.x * 0.5 * frame.viewport.x, -delta.y * 0.5 * frame.viewport.y);
+}
+
+// Pulled geometry (issue 19: a frame drawn in strips equals the frame drawn whole). The passes
+// that draw triangles (above water, membrane, under water) read their vertices from storage
+// buffers instead of vertex inputs: the vertex stage places each vertex on the rasteriser's
+// 1/256-pixel grid of the WHOLE frame itself, so the coverage of every strip is the frame's, and
+// the fragment stage interpolates the triangle's attributes from the whole frame's pixel centre,
+// so the values do not depend on the attachment's origin (Mesa's plane equations start there).
+// Binding 0 of group 1 is pass d's reflection target (shaders/water_clear.wgsl).
+@group(1) @binding(1) var<storage, read> vertex_words: array<u32>;
+// Three vertex indices a triangle (for the under-water soup: 0, 1, 2, ...).
+@group(1) @binding(2) var<storage, read> triangle_vertices: array<u32>;
+
+// Vertex invocations a triangle: its part inside the clip volume is a polygon of up to 8 corners
+// (3 + one a clipping plane), drawn as a fan of up to 6 triangles
+// (gpu::pulling::CORNERS_PER_TRIANGLE).
+const CORNERS_PER_TRIANGLE: u32 = 18u;
+const MAX_POLYGON: u32 = 8u;
+// The rasteriser's subpixel grid (Mesa's llvmpipe: 8 bits).
+const SUBPIXELS: f32 = 256.0;
+// A corner of no triangle: outside the clip volume, so the triangle is dropped whole.
+const NO_CORNER: vec4<f32> = vec4<f32>(2.0, 2.0, 2.0, 1.0);
+
+// Word `word` of vertex `vertex` of a buffer of `stride` words a vertex.
+fn vertex_word(vertex: u32, stride: u32, word: u32) -> u32 {
+    return vertex_words[vertex * stride + word];
+}
+fn vertex_vec2(vertex: u32, stride: u32, word: u32) -> vec2<f32> {
+    return bitcast<vec2<f32>>(vec2<u32>(vertex_word(vertex, stride, word), vertex_word(vertex, stride, word + 1u)));
+}
+fn vertex_vec3(vertex: u32, stride: u32, word: u32) -> vec3<f32> {
+    return vec3<f32>(vertex_vec2(vertex, stride, word), bitcast<f32>(vertex_word(vertex, stride, word + 2u)));
+}
+// The indices of triangle `triangle`'s three vertices.
+fn triangle_of(triangle: u32) -> vec3<u32> {
+    return vec3<u32>(triangle_vertices[triangle * 3u], triangle_vertices[triangle * 3u + 1u], triangle_vertices[triangle * 3u + 2u]);
+}
+// The vertex indices of triangle `triangle` of a soup (three vertices each, in order).
+fn soup_triangle(triangle: u32) -> vec3<u32> {
+    return vec3<u32>(triangle * 3u) + vec3<u32>(0u, 1u, 2u);
+}
+// The attribute at word `word` of the vertices `corners` (of `stride` words each) weighted by
+// `weights` (pulled_weights).
+fn pulled3(weights: vec3<f32>, corners: vec3<u32>, stride: u32, word: u32) -> vec3<f32> {
+    return vertex_vec3(corners.x, stride, word) * weights.x + vertex_vec3(corners.y, stride, word) * weights.y + vertex_vec3(corners.z, stride, word) * weights.z;
+}
+fn pulled1(weights: vec3<f32>, corners: vec3<u32>, stride: u32, word: u32) -> f32 {
+    let values = bitcast<vec3<f32>>(vec3<u32>(vertex_word(corners.x, stride, word), vertex_word(corners.y, stride, word), vertex_word(corners.z, stride, word)));
+    return dot(weights, values);
+}
+
+// Texture coordinates at a fragment, and their change to the next pixel right and down.
+struct TextureCoordinates {
+    at: vec2<f32>,
+    right: vec2<f32>,
+    down: vec2<f32>,
+};
+
+// The texture coordinates at word `word` of the vertices `corners` (of `stride` words each, the
+// position drawn at words 0-2) at the fragment at `pixel`, which has the weights `weights`, and
+// their change to the next pixel right and down, all interpolated at the whole frame's pixel
+// centres. Not the GPU's derivatives: they difference the 2x2 quad's fragments, and Mesa's
+// llvmpipe reads storage buffers as zero in a quad's helper fragments (outside the triangle), so
+// every pixel on a triangle's edge took a far too coarse mip level.
+fn pulled_texture_coordinates(pixel: vec2<f32>, weights: vec3<f32>, corners: vec3<u32>, stride: u32, word: u32) -> TextureCoordinates {
+    let a = vertex_vec3(corners.x, stride, 0u);
+    let b = vertex_vec3(corners.y, stride, 0u);
+    let c = vertex_vec3(corners.z, stride, 0u);
+    let uv_a = vertex_vec2(corners.x, stride, word);
+    let uv_b = vertex_vec2(corners.y, stride, word);
+    let uv_c = vertex_vec2(corners.z, stride, word);
+    let right = pixel_weights(pixel + vec2<f32>(1.0, 0.0), a, b, c);
+    let down = pixel_weights(pixel + vec2<f32>(0.0, 1.0), a, b, c);
+    let at = uv_a * weights.x + uv_b * weights.y + uv_c * weights.z;
+    return TextureCoordinates(
+        at,
+        uv_a * right.x + uv_b * right.y + uv_c * right.z - at,
+        uv_a * down.x + uv_b * down.y + uv_c * down.z - at,
+    );
+}
+
+// Corner `vertex_index % CORNERS_PER_TRIANGLE` (clipped_corner) of the triangle of vertices
+// `corners` (of `stride` words each, the position drawn at words 0-2).
+fn pulled_corner(vertex_index: u32, corners: vec3<u32>, stride: u32) -> vec4<f32> {
+    let a = frame.clip_from_world * vec4<f32>(vertex_vec3(corners.x, stride, 0u), 1.0);
+    let b = frame.clip_from_world * vec4<f32>(vertex_vec3(corners.y, stride, 0u), 1.0);
+    let c = frame.clip_from_world * vec4<f32>(vertex_vec3(corners.z, stride, 0u), 1.0);
+    return clipped_corner(a, b, c, vertex_index % CORNERS_PER_TRIANGLE);
+}
+
+// The weights (pixel_weights) of the triangle of vertices `corners` (of `stride` words each, the
+// position drawn at words 0-2) at the fragment at `pixel`.
+fn pulled_weights(pixel: vec2<f32>, corners: vec3<u32>, stride: u32) -> vec3<f32> {
+    return pixel_weights(pixel, vertex_vec3(corners.x, stride, 0u), vertex_vec3(corners.y, stride, 0u), vertex_vec3(corners.z, stride, 0u));
+}
+
+// A clip position with w = 1 whose window position is `clip`'s in the whole frame, on the
+// subpixel grid. The viewport (the frame's, moved up by a strip's first row) maps it to within a
+// tiny float error of a grid point, which the rasteriser's round-to-nearest snap recovers: the
+// same point of the frame in every strip. `clip` is inside the clip volume (clipped_corner), and
+// so is the result, exactly: the GPU clips nothing. The depth buffer takes the fragment stage's
+// depth (with_frame_depth); z here only has to be in [0, 1].
+fn snapped_clip(clip: vec4<f32>) -> vec4<f32> {
+    let ndc = clip.xyz / clip.w;
+    let size = frame.viewport.xy;
+    let window = vec2<f32>(ndc.x * 0.5 + 0.5, 0.5 - ndc.y * 0.5) * size;
+    let snapped = clamp(round(window * SUBPIXELS) / SUBPIXELS, vec2<f32>(0.0), size);
+    return vec4<f32>(snapped.x / size.x * 2.0 - 1.0, 1.0 - snapped.y / size.y * 2.0, clamp(ndc.z, 0.0, 1.0), 1.0);
+}
+
+// How far clip position `p` is inside clipping plane `plane` (negative: outside): the near plane
+// (z >= 0), then the frame's left, right, bottom and top sides.
+fn plane_distance(p: vec4<f32>, plane: u32) -> f32 {
+    switch plane {
+        case 0u: { return p.z; }
+        case 1u: { return p.w + p.x; }
+        case 2u: { return p.w - p.x; }
+        case 3u: { return p.w + p.y; }
+        default: { return p.w - p.y; }
+    }
+}
+
+// Corner `corner` (0 to CORNERS_PER_TRIANGLE - 1) of the part of triangle (a, b, c) (clip
+// positions) inside the clip volume, clipped here (Sutherland-Hodgman, in clip space, so
+// perspective-correctly) and drawn as the fan (0, f + 1, f + 2) of its polygon; corners of fan
+// triangles the polygon lacks are NO_CORNER. Clipping is here, not in the GPU, because w = 1
+// (snapped_clip) leaves the GPU nothing to clip perspective-correctly with, and because the GPU's
+// clipped corners would be off the subpixel grid, where a strip's viewport rounds differently.
+fn clipped_corner(a: vec4<f32>, b: vec4<f32>, c: vec4<f32>, corner: u32) -> vec4<f32> {
+    let fan = corner / 3u;
+    let k = corner % 3u;
+    let index = select(0u, fan + k, k > 0u);
+    let sides_a = vec4<f32>(a.w + a.x, a.w - a.x, a.w + a.y, a.w - a.y);
+    let sides_b = vec4<f32>(b.w + b.x, b.w - b.x, b.w + b.y, b.w - b.y);
+    let sides_c = vec4<f32>(c.w + c.x, c.w - c.x, c.w + c.y, c.w - c.y);
+    // Wholly outside one plane: nothing. Wholly inside every plane: the triangle itself.
+    if (a.z < 0.0 && b.z < 0.0 && c.z < 0.0) || any((sides_a < vec4<f32>(0.0)) & (sides_b < vec4<f32>(0.0)) & (sides_c < vec4<f32>(0.0))) {
+        return NO_CORNER;
+    }
+    if a.z >= 0.0 && b.z >= 0.0 && c.z >= 0.0 && all(min(min(sides_a, sides_b), sides_c) >= vec4<f32>(0.0)) {
+        if corner >= 3u {
+            return NO_CORNER;
+        }
+        var triangle = array<vec4<f32>, 3>(a, b, c);
+        return snapped_clip(triangle[corner]);
+    }
+    var polygon: array<vec4<f32>, MAX_POLYGON>;
+    polygon[0] = a;
+    polygon[1] = b;
+    polygon[2] = c;
+    var count = 3u;
+    for (var plane = 0u; plane < 5u; plane = plane + 1u) {
+        var clipped: array<vec4<f32>, MAX_POLYGON>;
+        var kept = 0u;
+        for (var i = 0u; i < count; i = i + 1u) {
+            let p = polygon[i];
+            let q = polygon[(i + 1u) % count];
+            let dp = plane_distance(p, plane);
+            let dq = plane_distance(q, plane);
+            if dp >= 0.0 && kept < MAX_POLYGON {
+                clipped[kept] = p;
+                kept = kept + 1u;
+            }
+            if (dp >= 0.0) != (dq >= 0.0) && kept < MAX_POLYGON {
+                // From the inside end, so that the triangles on both sides of an edge make the
+                // same point.
+                var inside = p;
+                var outside = q;
+                var d_inside = dp;
+                var d_outside = dq;
+                if dp < 0.0 {
+                    inside = q;
+                    outside = p;
+                    d_inside = dq;
+                    d_outside = dp;
+                }
+                clipped[kept] = inside + (outside - inside) * (d_inside / (d_inside - d_outside));
+                kept = kept + 1u;
+            }
+        }
+        polygon = clipped;
+        count = kept;
+        if count < 3u {
+            return NO_CORNER;
+        }
+    }
+    if fan + 2u >= count {
+        return NO_CORNER;
+    }
+    return snapped_clip(polygon[index]);
+}
+
+// Perspective-correct weights of a triangle's corners (a, b, c, world space, as drawn) at the
+// fragment at `pixel` (@builtin(position).xy of a strip): where the eye's ray through the whole
+// frame's pixel centre meets the triangle's plane (Moller-Trumbore). Finite always: an edge-on
+// triangle gets equal weights.
+fn pixel_weights(pixel: vec2<f32>, a: vec3<f32>, b: vec3<f32>, c: vec3<f32>) -> vec3<f32> {
+    let direction = ray_through_pixel(pixel);
+    let ab = b - a;
+    let ac = c - a;
+    let p = cross(direction, ac);
+    let det = dot(ab, p);
+    let from_a = frame.eye.xyz - a;
+    let u = dot(from_a, p) / det;
+    let v = dot(direction, cross(from_a, ab)) / det;
+    let weights = vec3<f32>(1.0 - u - v, u, v);
+    if !all(abs(weights) < vec3<f32>(1e6)) {
+        return vec3<f32>(1.0 / 3.0);
+    }
+    return weights;
+}
+
+// Targets of a pulled draw: the main pass's, and the fragment's depth computed from the whole
+// frame's pixel (frame_depth), not the rasteriser's, whose plane equation starts at the
+// attachment's origin: where two surfaces meet (the membrane at a wall), the depth test then
+// keeps the same one in every strip.
+struct DepthTargets {
+    @location(0) beauty: vec4<f32>,
+    @location(1) position: vec4<u32>,
+    @location(2) flags: u32,
+    @location(3) reflection: vec4<u32>,
+    @location(4) extra: vec4<u32>,
+    @builtin(frag_depth) depth: f32,
+};
+
+// The depth buffer's value (clip z / w) of world point `drawn_position`, as rasterised.
+fn with_frame_depth(targets: Targets, drawn_position: vec3<f32>) -> DepthTargets {
+    let clip = frame.clip_from_world * vec4<f32>(drawn_position, 1.0);
+    return DepthTargets(targets.beauty, targets.position, targets.flags, targets.reflection, targets.extra, clamp(clip.z / clip.w, 0.0, 1.0));
 }

@@ -4,32 +4,32 @@
 // Schlick's F, premultiplied, in the reflection target: (F * sky(reflect(I, N)), F). Pass d
 // (shaders/water_clear.wgsl) blends that over the refracted image:
 // out = F * sky(reflect(I, N)) + (1 - F) * dst, by blend One / OneMinusSrcAlpha with src.a = F.
+// Pulled (common.inc.wgsl): crate::draw::MembraneVertex is 6 words: position 0-2, normal 3-5.
 
-struct MembraneVertex {
-    @location(0) position: vec3<f32>,
-    @location(1) normal: vec3<f32>,
-};
+const MEMBRANE_VERTEX_WORDS: u32 = 6u;
 
 struct MembraneVarying {
     // Invariant: the rasterised depth must not depend on what the fragment stage reads.
     @builtin(position) @invariant clip: vec4<f32>,
-    @location(0) world_position: vec3<f32>,
-    @location(1) normal: vec3<f32>,
+    @location(0) @interpolate(flat, either) triangle: u32,
 };
 
 @vertex
-fn vs_membrane(vertex: MembraneVertex) -> MembraneVarying {
+fn vs_membrane(@builtin(vertex_index) vertex_index: u32) -> MembraneVarying {
     var out: MembraneVarying;
-    out.clip = frame.clip_from_world * vec4<f32>(vertex.position, 1.0);
-    out.world_position = vertex.position;
-    out.normal = vertex.normal;
+    out.triangle = vertex_index / CORNERS_PER_TRIANGLE;
+    out.clip = pulled_corner(vertex_index, triangle_of(out.triangle), MEMBRANE_VERTEX_WORDS);
     return out;
 }
 
 @fragment
-fn fs_membrane(in: MembraneVarying) -> Targets {
-    let normal = normalize(in.normal);
-    let to_surface = in.world_position - frame.eye.xyz;
+fn fs_membrane(in: MembraneVarying) -> DepthTargets {
+    let corners = triangle_of(in.triangle);
+    let s = MEMBRANE_VERTEX_WORDS;
+    let weights = pulled_weights(in.clip.xy, corners, s);
+    let world_position = pulled3(weights, corners, s, 0u);
+    let normal = normalize(pulled3(weights, corners, s, 3u));
+    let to_surface = world_position - frame.eye.xyz;
     let distance_m = length(to_surface);
     let incident = to_surface / distance_m;
     let reflectance = schlick_reflectance(incident, normal);
@@ -37,7 +37,7 @@ fn fs_membrane(in: MembraneVarying) -> Targets {
     var out: Targets;
     // Only w (the membrane's depth along the view axis) and the reflection are written: beauty
     // and xyz are the under-water image's, drawn after this.
-    out.position = vec4<u32>(0u, 0u, 0u, bitcast<u32>(view_depth(in.world_position)));
+    out.position = vec4<u32>(0u, 0u, 0u, bitcast<u32>(view_depth(world_position)));
     out.reflection = bitcast<vec4<u32>>(vec4<f32>(reflectance * sky_radiance(reflected), reflectance));
-    return out;
+    return with_frame_depth(out, world_position);
 }

@@ -1,60 +1,51 @@
 // Pass c: under-water geometry rasterised at its VIRTUAL positions, shaded with its TRUE
 // attributes, attenuated along the true water path; writes the true position and the flags.
+// Pulled (common.inc.wgsl): crate::draw::VirtualVertex is 17 words: virtual position 0-2,
+// previous (virtual) position 3-5, true position 6-8, normal 9-11, uv 12-13, material 14, water
+// path 15, flags 16. The list is a triangle soup: triangle t is vertices 3t, 3t + 1, 3t + 2.
 
-struct UnderVertex {
-    @location(0) virtual_position: vec3<f32>,
-    @location(1) previous_position: vec3<f32>,
-    @location(2) true_position: vec3<f32>,
-    @location(3) normal: vec3<f32>,
-    @location(4) uv: vec2<f32>,
-    @location(5) material: u32,
-    @location(6) water_path_m: f32,
-    @location(7) flags: u32,
-};
+const VIRTUAL_VERTEX_WORDS: u32 = 17u;
 
 struct UnderVarying {
     @builtin(position) clip: vec4<f32>,
-    @location(0) true_position: vec3<f32>,
-    @location(1) normal: vec3<f32>,
-    @location(2) uv: vec2<f32>,
-    @location(3) water_path_m: f32,
-    @location(4) @interpolate(flat, either) material: u32,
-    @location(5) @interpolate(flat, either) flags: u32,
-    // Depth along the view axis of the virtual position (affine in world space, so perspective-
-    // correct interpolation gives the virtual surface's depth exactly).
-    @location(6) apparent_depth_m: f32,
-    // The clip position of the virtual vertex now and of t-1's virtual vertex through t-1's
-    // camera (motion vectors).
-    @location(7) clip_now: vec4<f32>,
-    @location(8) clip_before: vec4<f32>,
+    @location(0) @interpolate(flat, either) triangle: u32,
 };
 
 @vertex
-fn vs_under(vertex: UnderVertex) -> UnderVarying {
+fn vs_under(@builtin(vertex_index) vertex_index: u32) -> UnderVarying {
     var out: UnderVarying;
-    out.clip = frame.clip_from_world * vec4<f32>(vertex.virtual_position, 1.0);
-    out.true_position = vertex.true_position;
-    out.normal = vertex.normal;
-    out.uv = vertex.uv;
-    out.water_path_m = vertex.water_path_m;
-    out.material = vertex.material;
-    out.flags = vertex.flags;
-    out.apparent_depth_m = view_depth(vertex.virtual_position);
-    out.clip_now = out.clip;
-    out.clip_before = frame.previous_clip_from_world * vec4<f32>(vertex.previous_position, 1.0);
+    out.triangle = vertex_index / CORNERS_PER_TRIANGLE;
+    out.clip = pulled_corner(vertex_index, soup_triangle(out.triangle), VIRTUAL_VERTEX_WORDS);
     return out;
 }
 
 @fragment
-fn fs_under(in: UnderVarying) -> Targets {
-    let normal = normalize(in.normal);
-    let colour = shade_under(albedo(in.material, in.uv), normal, in.true_position, max(in.water_path_m, 0.0));
+fn fs_under(in: UnderVarying) -> DepthTargets {
+    let corners = soup_triangle(in.triangle);
+    let s = VIRTUAL_VERTEX_WORDS;
+    // Weights on the virtual triangle, the one rasterised: the attributes vary over it as the
+    // GPU's perspective-correct interpolation would vary them.
+    let weights = pulled_weights(in.clip.xy, corners, s);
+    let virtual_position = pulled3(weights, corners, s, 0u);
+    let previous_position = pulled3(weights, corners, s, 3u);
+    let true_position = pulled3(weights, corners, s, 6u);
+    let normal = normalize(pulled3(weights, corners, s, 9u));
+    let uv = pulled_texture_coordinates(in.clip.xy, weights, corners, s, 12u);
+    let water_path_m = pulled1(weights, corners, s, 15u);
+    // The provoking (first) vertex's material and flags, as flat attributes had them.
+    let material = vertex_word(corners.x, s, 14u);
+    let flags = vertex_word(corners.x, s, 16u);
+    let colour = shade_under(albedo(material, uv), normal, true_position, max(water_path_m, 0.0));
     var out: Targets;
     out.beauty = vec4<f32>(colour, 1.0);
     // w is masked off: the depth is the membrane's, written by pass b.
-    out.position = vec4<u32>(bitcast<vec3<u32>>(in.true_position), 0u);
-    out.flags = flags_and_object(in.flags, in.material) | WATER_BIT;
-    let motion = motion_px(in.clip_now, in.clip_before);
-    out.extra = vec4<u32>(bitcast<vec2<u32>>(motion), 0u, bitcast<u32>(in.apparent_depth_m));
-    return out;
+    out.position = vec4<u32>(bitcast<vec3<u32>>(true_position), 0u);
+    out.flags = flags_and_object(flags, material) | WATER_BIT;
+    // The virtual surface's depth along the view axis (the apparent depth).
+    let apparent_depth_m = view_depth(virtual_position);
+    let clip_now = frame.clip_from_world * vec4<f32>(virtual_position, 1.0);
+    let clip_before = frame.previous_clip_from_world * vec4<f32>(previous_position, 1.0);
+    let motion = motion_px(clip_now, clip_before);
+    out.extra = vec4<u32>(bitcast<vec2<u32>>(motion), 0u, bitcast<u32>(apparent_depth_m));
+    return with_frame_depth(out, virtual_position);
 }

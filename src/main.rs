@@ -131,10 +131,9 @@ enum Command {
         /// Draw and read back each frame in horizontal strips of this many rows (a multiple of
         /// 32; rounded down). Without it a frame is drawn whole when its readback fits 256 MiB
         /// (2560x1440 does) and in strips of as many rows as fit otherwise, so that any size
-        /// renders without holding the whole frame. Strips give the same flags, water matte, alpha,
-        /// Z and sky reflection (within 1e-5, tested); the beauty and object layers differ in a few
-        /// edge pixels, where Mesa's rasteriser interpolates relative to the strip's window. This
-        /// option is for tests and measurements.
+        /// renders without holding the whole frame. Strips give the whole frame's pixels in every
+        /// layer (within 1e-5, tested; bit for bit on Mesa's Vulkan and GL). This option is for
+        /// tests and measurements.
         #[arg(long, value_name = "ROWS")]
         strip_rows: Option<u32>,
         #[command(flatten)]

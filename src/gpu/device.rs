@@ -112,6 +112,10 @@ impl GpuContext {
         let available = adapter.features();
         let mut required_features = wgpu::Features::empty();
         let mut required_limits = wgpu::Limits::default().using_resolution(adapter.limits());
+        // The triangle draws read their vertex lists as storage buffers (gpu::pulling), each
+        // bound whole: as large as the adapter allows, like a vertex buffer.
+        required_limits.max_storage_buffer_binding_size =
+            adapter.limits().max_storage_buffer_binding_size;
 
         // Float32 blending is a device feature: without it a float32 target cannot take pass d's
         // blend. Beauty (16 or 8) + position (16) + flags (4) + reflection (16) + extra (16) bytes

@@ -24,8 +24,9 @@
 //!
 //! The files: `device.rs` the adapter, device, target formats and wgpu error scopes;
 //! `renderer.rs` the [`Renderer`] made (bind groups, uniforms, sampler, textures);
-//! `pipelines.rs` the six draws' pipelines; `uniform.rs` the frame constants; `buffers.rs` the
-//! vertex and index buffers; `validate.rs` the checks of a frame's draw lists; `passes.rs` the
+//! `pipelines.rs` the six draws' pipelines; `pulling.rs` the triangle draws' vertices read from
+//! storage buffers, clipped and snapped in the shaders so that strips draw the frame's pixels;
+//! `uniform.rs` the frame constants; `buffers.rs` the vertex and index buffers; `validate.rs` the checks of a frame's draw lists; `passes.rs` the
 //! uploads and render passes encoded; `strips.rs` a frame drawn and read back strip by strip;
 //! `readback.rs` the targets, readback buffer and unpacking; `textures.rs` the texture array;
 //! `shaders.rs` and `shading.rs` the WGSL sources and their CPU mirror.
@@ -34,6 +35,7 @@ mod buffers;
 mod device;
 mod passes;
 mod pipelines;
+mod pulling;
 mod readback;
 mod renderer;
 pub mod shaders;
@@ -128,12 +130,16 @@ pub struct Renderer {
     above_vertices: GrowingBuffer,
     above_indices: GrowingBuffer,
     under_vertices: GrowingBuffer,
-    /// 0, 1, 2, ... for drawing the under-water triangle list indexed (see `encode_passes`).
-    under_indices: GrowingBuffer,
-    /// How many sequential indices `under_indices` holds.
-    under_index_count: usize,
+    /// 0, 1, 2, ...: the index list of every pulled draw (see `encode_passes`), and the
+    /// under-water soup's triangles.
+    sequential_indices: GrowingBuffer,
+    /// How many sequential indices `sequential_indices` holds.
+    sequential_index_count: usize,
     membrane_vertices: GrowingBuffer,
     membrane_indices: GrowingBuffer,
+    /// Group 1 of the pulled draws ([`pulling`]): its layout and the frame's bind groups.
+    pulled_layout: wgpu::BindGroupLayout,
+    pulled: pulling::PulledBindGroups,
     targets: Option<FrameTargets>,
     /// Rows of a strip when set ([`Renderer::set_strip_rows`]); otherwise [`Renderer::strip_rows`]
     /// chooses.

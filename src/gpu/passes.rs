@@ -1,8 +1,8 @@
 //! The passes of a frame (or a strip) encoded: the frame's uploads, the main render pass (draws
 //! 1 to 5) and pass d.
 
-use super::buffers::GrowingBuffer;
 use super::pipelines::MEMBRANE_STENCIL;
+use super::pulling::{bind_group, PulledBindGroups, CORNERS_PER_TRIANGLE};
 use super::readback::FrameTargets;
 use super::strips::set_strip_viewport;
 use super::Renderer;
@@ -30,18 +30,51 @@ impl Renderer {
             .upload(device, queue, bytemuck::cast_slice(&draw.above_indices));
         self.under_vertices
             .upload(device, queue, bytemuck::cast_slice(&draw.under_vertices));
-        if self.under_index_count < draw.under_vertices.len() {
-            // Sequential indices, written only when the triangle list outgrows them.
-            let count = draw.under_vertices.len().next_power_of_two();
-            let indices: Vec<u32> = (0..count as u32).collect();
-            self.under_indices
-                .upload(device, queue, bytemuck::cast_slice(&indices));
-            self.under_index_count = count;
-        }
         self.membrane_vertices
             .upload(device, queue, bytemuck::cast_slice(&draw.membrane_vertices));
         self.membrane_indices
             .upload(device, queue, bytemuck::cast_slice(&draw.membrane_indices));
+        // Each pulled draw takes CORNERS_PER_TRIANGLE sequential indices a triangle; the
+        // under-water soup's triangles are read from the same list.
+        let triangles = draw
+            .above_indices
+            .len()
+            .max(draw.under_vertices.len())
+            .max(draw.membrane_indices.len())
+            / 3;
+        let needed = (triangles * CORNERS_PER_TRIANGLE as usize).max(draw.under_vertices.len());
+        if self.sequential_index_count < needed {
+            // Written only when the draws outgrow them.
+            let count = needed.next_power_of_two();
+            let indices: Vec<u32> = (0..count as u32).collect();
+            self.sequential_indices
+                .upload(device, queue, bytemuck::cast_slice(&indices));
+            self.sequential_index_count = count;
+        }
+        let layout = &self.pulled_layout;
+        self.pulled = PulledBindGroups {
+            above: bind_group(
+                device,
+                layout,
+                "above water",
+                &self.above_vertices,
+                &self.above_indices,
+            ),
+            membrane: bind_group(
+                device,
+                layout,
+                "membrane",
+                &self.membrane_vertices,
+                &self.membrane_indices,
+            ),
+            under: bind_group(
+                device,
+                layout,
+                "under water",
+                &self.under_vertices,
+                &self.sequential_indices,
+            ),
+        };
     }
 
     /// The passes of a frame; `viewport`, for a strip: the frame's width and height and the
@@ -124,66 +157,65 @@ impl Renderer {
         pass.set_bind_group(0, &self.bind_group, &[]);
         pass.set_stencil_reference(MEMBRANE_STENCIL);
         let pipelines = &self.pipelines;
-        fn buffer_of(growing: &GrowingBuffer) -> Option<wgpu::BufferSlice<'_>> {
-            growing.buffer.as_ref().map(|buffer| buffer.slice(..))
+        // Every triangle draw is pulled (super::pulling): no vertex buffers, CORNERS_PER_TRIANGLE
+        // sequential indices a triangle. Indexed, not plain draws: on Mesa's lavapipe / llvmpipe
+        // a non-indexed draw of the under-water list spent ~15 ms of ~190 ms CPU per 1280x720
+        // pool frame in the draw module's per-batch vertex-id reset loop; indexed, that loop all
+        // but vanished from the profile (same pixels).
+        let sequential = self.sequential_indices.buffer.as_ref();
+        fn draw_pulled(
+            pass: &mut wgpu::RenderPass<'_>,
+            pipeline: &wgpu::RenderPipeline,
+            group: Option<&wgpu::BindGroup>,
+            sequential: Option<&wgpu::Buffer>,
+            triangles: usize,
+        ) -> bool {
+            let (Some(group), Some(indices)) = (group, sequential) else {
+                return false;
+            };
+            if triangles == 0 {
+                return false;
+            }
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(1, group, &[]);
+            pass.set_index_buffer(indices.slice(..), wgpu::IndexFormat::Uint32);
+            pass.draw_indexed(0..triangles as u32 * CORNERS_PER_TRIANGLE, 0, 0..1);
+            true
         }
 
         // a. the geometry on the eye's side.
-        if let (Some(vertices), Some(indices)) = (
-            buffer_of(&self.above_vertices),
-            buffer_of(&self.above_indices),
+        draw_pulled(
+            &mut pass,
+            &pipelines.above,
+            self.pulled.above.as_ref(),
+            sequential,
+            draw.above_indices.len() / 3,
+        );
+        // b. the membrane: stencil where it is visible, its distance and reflection; then the sky
+        // where nothing is.
+        if !draw_pulled(
+            &mut pass,
+            &pipelines.membrane,
+            self.pulled.membrane.as_ref(),
+            sequential,
+            draw.membrane_indices.len() / 3,
         ) {
-            if !draw.above_indices.is_empty() {
-                pass.set_pipeline(&pipelines.above);
-                pass.set_vertex_buffer(0, vertices);
-                pass.set_index_buffer(indices, wgpu::IndexFormat::Uint32);
-                pass.draw_indexed(0..draw.above_indices.len() as u32, 0, 0..1);
-            }
-        }
-        let membrane = match (
-            buffer_of(&self.membrane_vertices),
-            buffer_of(&self.membrane_indices),
-        ) {
-            (Some(vertices), Some(indices)) if !draw.membrane_indices.is_empty() => {
-                Some((vertices, indices))
-            }
-            _ => None,
-        };
-        let Some((membrane_vertices, membrane_indices)) = membrane else {
             pass.set_pipeline(&pipelines.sky);
             pass.draw(0..3, 0..1);
             return false;
-        };
-        // b. the membrane: stencil where it is visible, its distance and reflection; then the sky
-        // where nothing is.
-        pass.set_pipeline(&pipelines.membrane);
-        pass.set_vertex_buffer(0, membrane_vertices);
-        pass.set_index_buffer(membrane_indices, wgpu::IndexFormat::Uint32);
-        pass.draw_indexed(0..draw.membrane_indices.len() as u32, 0, 0..1);
+        }
         pass.set_pipeline(&pipelines.sky);
         pass.draw(0..3, 0..1);
         // c. inside the stencil: depth to far + deep-water colour, then the virtual geometry.
         pass.set_pipeline(&pipelines.deep_water);
         pass.draw(0..3, 0..1);
-        if let Some(vertices) = buffer_of(&self.under_vertices) {
-            if !draw.under_vertices.is_empty() {
-                pass.set_pipeline(&pipelines.under);
-                pass.set_vertex_buffer(0, vertices);
-                let vertex_count = draw.under_vertices.len() as u32;
-                match buffer_of(&self.under_indices) {
-                    // Indexed although the list is a plain triangle soup: on Mesa's lavapipe /
-                    // llvmpipe the non-indexed draw of this list, whose triangles crossing the
-                    // viewport's edges must be clipped, spent ~15 ms of ~190 ms CPU per 1280x720
-                    // pool frame in the draw module's per-batch vertex-id reset loop; indexed,
-                    // that loop all but vanished from the profile (same pixels).
-                    Some(indices) => {
-                        pass.set_index_buffer(indices, wgpu::IndexFormat::Uint32);
-                        pass.draw_indexed(0..vertex_count, 0, 0..1);
-                    }
-                    _ => pass.draw(0..vertex_count, 0..1),
-                }
-            }
-        }
+        draw_pulled(
+            &mut pass,
+            &pipelines.under,
+            self.pulled.under.as_ref(),
+            sequential,
+            draw.under_vertices.len() / 3,
+        );
         true
     }
 }

@@ -1,9 +1,8 @@
 //! The render pipelines of the six draws of ALGORITHM §7 (see the module documentation of
-//! [`super`]): their shaders, vertex layouts, colour writes, depth and stencil.
+//! [`super`]): their shaders, layouts, colour writes, depth and stencil.
 
 use super::device::{GpuContext, EXTRA_FORMAT, FLAGS_FORMAT, POSITION_FORMAT, REFLECTION_FORMAT};
 use super::{shaders, GpuError};
-use crate::draw::{MembraneVertex, TrueVertex, VirtualVertex};
 
 /// The pipelines of the six draws, in drawing order.
 pub(super) struct Pipelines {
@@ -58,11 +57,16 @@ struct PipelineFactory<'a> {
     layout: wgpu::PipelineLayout,
     /// Pass d's layout: the frame's bind group and the reflection target's.
     reflection_layout: wgpu::PipelineLayout,
+    /// The triangle draws' layout: the frame's bind group and their pulled vertices'.
+    pulled_layout: wgpu::PipelineLayout,
     beauty_format: wgpu::TextureFormat,
     depth_stencil_format: wgpu::TextureFormat,
 }
 
 impl PipelineFactory<'_> {
+    /// A pipeline of the main render pass, or of pass d where `writes` has no reflection; with
+    /// `pulled`, one that reads vertices from group 1 ([`super::pulling`]). No draw has vertex
+    /// buffers.
     #[allow(clippy::too_many_arguments)]
     fn pipeline(
         &self,
@@ -70,13 +74,14 @@ impl PipelineFactory<'_> {
         module: &wgpu::ShaderModule,
         vertex_entry: &str,
         fragment_entry: &str,
-        buffers: &[Option<wgpu::VertexBufferLayout>],
+        pulled: bool,
         writes: Writes,
         depth_stencil: DepthStencil,
     ) -> wgpu::RenderPipeline {
-        let layout = match writes.reflection_and_extra {
-            Some(_) => &self.layout,
-            None => &self.reflection_layout,
+        let layout = match (writes.reflection_and_extra, pulled) {
+            (Some(_), true) => &self.pulled_layout,
+            (Some(_), false) => &self.layout,
+            (None, _) => &self.reflection_layout,
         };
         let stencil_face = wgpu::StencilFaceState {
             compare: depth_stencil.stencil_compare,
@@ -92,7 +97,7 @@ impl PipelineFactory<'_> {
                     module,
                     entry_point: Some(vertex_entry),
                     compilation_options: Default::default(),
-                    buffers,
+                    buffers: &[],
                 },
                 primitive: wgpu::PrimitiveState {
                     topology: wgpu::PrimitiveTopology::TriangleList,
@@ -174,6 +179,7 @@ pub(super) fn create_pipelines(
     context: &GpuContext,
     bind_group_layout: &wgpu::BindGroupLayout,
     reflection_layout: &wgpu::BindGroupLayout,
+    pulled_layout: &wgpu::BindGroupLayout,
 ) -> Result<Pipelines, GpuError> {
     use wgpu::CompareFunction::{Always, Equal, Less, LessEqual, NotEqual};
     use wgpu::StencilOperation::{Keep, Replace};
@@ -190,6 +196,11 @@ pub(super) fn create_pipelines(
             bind_group_layouts: &[Some(bind_group_layout), Some(reflection_layout)],
             immediate_size: 0,
         }),
+        pulled_layout: device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("snell pulled draws"),
+            bind_group_layouts: &[Some(bind_group_layout), Some(pulled_layout)],
+            immediate_size: 0,
+        }),
         beauty_format: context.formats.beauty,
         depth_stencil_format: context.formats.depth_stencil,
     };
@@ -199,26 +210,6 @@ pub(super) fn create_pipelines(
     let water_clear_module = shader_module(device, "water_clear")?;
     let under_module = shader_module(device, "under")?;
 
-    let above_layout = wgpu::VertexBufferLayout {
-        array_stride: std::mem::size_of::<TrueVertex>() as u64,
-        step_mode: wgpu::VertexStepMode::Vertex,
-        attributes: &wgpu::vertex_attr_array![
-            0 => Float32x3, 1 => Float32x3, 2 => Float32x3, 3 => Float32x2, 4 => Uint32
-        ],
-    };
-    let under_layout = wgpu::VertexBufferLayout {
-        array_stride: std::mem::size_of::<VirtualVertex>() as u64,
-        step_mode: wgpu::VertexStepMode::Vertex,
-        attributes: &wgpu::vertex_attr_array![
-            0 => Float32x3, 1 => Float32x3, 2 => Float32x3, 3 => Float32x3, 4 => Float32x2,
-            5 => Uint32, 6 => Float32, 7 => Uint32
-        ],
-    };
-    let membrane_layout = wgpu::VertexBufferLayout {
-        array_stride: std::mem::size_of::<MembraneVertex>() as u64,
-        step_mode: wgpu::VertexStepMode::Vertex,
-        attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3],
-    };
     let inside_stencil = |depth_write, depth_compare| DepthStencil {
         depth_write,
         depth_compare,
@@ -237,7 +228,7 @@ pub(super) fn create_pipelines(
             &sky_module,
             "vs_sky",
             "fs_sky",
-            &[],
+            false,
             ALL_WRITES,
             // Drawn after the above-water geometry and the membrane's stencil: only pixels that
             // nothing has covered (depth still at the far plane, no visible membrane) shade the
@@ -254,7 +245,7 @@ pub(super) fn create_pipelines(
             &above_module,
             "vs_above",
             "fs_above",
-            &[Some(above_layout)],
+            true,
             ALL_WRITES,
             DepthStencil {
                 depth_write: true,
@@ -272,7 +263,7 @@ pub(super) fn create_pipelines(
             &membrane_module,
             "vs_membrane",
             "fs_membrane",
-            &[Some(membrane_layout)],
+            true,
             Writes {
                 beauty: wgpu::ColorWrites::empty(),
                 beauty_blend: None,
@@ -292,7 +283,7 @@ pub(super) fn create_pipelines(
             &water_clear_module,
             "vs_far",
             "fs_deep_water",
-            &[],
+            false,
             UNDER_WATER_WRITES,
             inside_stencil(true, Always),
         ),
@@ -301,7 +292,7 @@ pub(super) fn create_pipelines(
             &under_module,
             "vs_under",
             "fs_under",
-            &[Some(under_layout)],
+            true,
             UNDER_WATER_WRITES,
             inside_stencil(true, Less),
         ),
@@ -310,7 +301,7 @@ pub(super) fn create_pipelines(
             &water_clear_module,
             "vs_far",
             "fs_reflection",
-            &[],
+            false,
             Writes {
                 beauty: wgpu::ColorWrites::ALL,
                 beauty_blend: Some(wgpu::BlendState {

@@ -5,7 +5,7 @@ use super::buffers::GrowingBuffer;
 use super::device::{within_error_scopes, GpuContext};
 use super::pipelines::create_pipelines;
 use super::uniform::FrameUniform;
-use super::{textures, GpuError, Renderer, MAX_MATERIALS};
+use super::{pulling, textures, GpuError, Renderer, MAX_MATERIALS};
 use crate::mesh::Texture;
 
 fn make_bind_group(
@@ -98,7 +98,13 @@ impl Renderer {
                 count: None,
             }],
         });
-        let pipelines = create_pipelines(&context, &bind_group_layout, &reflection_layout)?;
+        let pulled_layout = pulling::bind_group_layout(device);
+        let pipelines = create_pipelines(
+            &context,
+            &bind_group_layout,
+            &reflection_layout,
+            &pulled_layout,
+        )?;
         let frame_uniform = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("frame constants"),
             size: std::mem::size_of::<FrameUniform>() as u64,
@@ -121,8 +127,9 @@ impl Renderer {
             &texture_array.view,
             &sampler,
         );
-        let vertex = wgpu::BufferUsages::VERTEX;
-        let index = wgpu::BufferUsages::INDEX;
+        // Pulled by the shaders (storage); the sequential list is the draws' index buffer too.
+        let vertex = wgpu::BufferUsages::STORAGE;
+        let index = wgpu::BufferUsages::STORAGE;
         Ok(Renderer {
             context,
             pipelines,
@@ -136,10 +143,15 @@ impl Renderer {
             above_vertices: GrowingBuffer::new("above-water vertices", vertex),
             above_indices: GrowingBuffer::new("above-water indices", index),
             under_vertices: GrowingBuffer::new("under-water vertices", vertex),
-            under_indices: GrowingBuffer::new("under-water indices", index),
-            under_index_count: 0,
+            sequential_indices: GrowingBuffer::new(
+                "sequential indices",
+                index | wgpu::BufferUsages::INDEX,
+            ),
+            sequential_index_count: 0,
             membrane_vertices: GrowingBuffer::new("membrane vertices", vertex),
             membrane_indices: GrowingBuffer::new("membrane indices", index),
+            pulled_layout,
+            pulled: Default::default(),
             targets: None,
             forced_strip_rows: None,
         })

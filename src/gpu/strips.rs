@@ -71,8 +71,9 @@ impl Renderer {
     /// Draws one frame at `width` x `height` as horizontal strips of [`Self::strip_rows`] rows,
     /// top first, and gives each strip's layers to `sink` with the frame row it starts at, as
     /// soon as it is read back. Each strip draws the whole frame's geometry through the frame's
-    /// own projection with the viewport moved up by the strip's first row, so its pixels are the
-    /// frame's (the rasteriser's window coordinates shift by a whole number of pixels), and only
+    /// own projection with the viewport moved up by the strip's first row, and its pixels are the
+    /// frame's: the triangle draws place their corners on the whole frame's subpixel grid and
+    /// interpolate from the whole frame's pixel centres ([`super::pulling`]), and only
     /// one strip's targets and readback are held at a time. A frame of one strip is drawn exactly
     /// as before strips existed (no viewport set, offset 0).
     pub fn render_strips<E: From<GpuError>>(
