@@ -188,11 +188,18 @@ enum Command {
     /// frame times of a scene (default scenes/pool.toml) at 1280x720, and the ray-traced
     /// reference's refracted rays per second and seconds per frame on the same scene and size,
     /// and the refraction stage of a wake (default scenes/hard/wading_wake.toml frames 40-48)
-    /// beside the same frames with ripples off.
+    /// beside the same frames with ripples off, and the whole `snell render` per written frame
+    /// of the scene at 1280x720 (`written`: frames 1-8 unwritten, then written with `--layers
+    /// comp` and with `all`, alternating over 3 passes; wall-clock and CPU per frame and the
+    /// ratios written / unwritten, targets at most 1.3x for `comp` and 2.5x for `all`).
     Bench {
         /// Print the figures as one JSON object.
         #[arg(long)]
         json: bool,
+        /// Measure only the written-frame figures (`written`, about 20 s on an idle 2-core
+        /// machine) and none of the others.
+        #[arg(long)]
+        written_only: bool,
         /// Scene whose frame times are measured.
         #[arg(long, default_value = "scenes/pool.toml")]
         scene: PathBuf,
@@ -507,6 +514,13 @@ fn run(cli: Cli) -> u8 {
         Command::Info { scene } => info(&scene),
         Command::Bench {
             json,
+            written_only: true,
+            scene,
+            ..
+        } => written_bench(json, &scene),
+        Command::Bench {
+            json,
+            written_only: false,
             scene,
             characters_scene,
             skinning_model,
@@ -890,6 +904,25 @@ fn info(scene_path: &Path) -> Result<(), SnellError> {
 
 /// Frames whose scrub latency `snell bench` measures (spread over the timeline).
 const SCRUB_FRAMES: usize = 8;
+
+/// `snell bench --written-only`: the written-frame figures alone.
+fn written_bench(json: bool, scene_path: &Path) -> Result<(), SnellError> {
+    let figures = snell::frame::bench::written_times(
+        scene_path,
+        snell::frame::bench::WRITTEN_FRAMES,
+        snell::frame::bench::WRITTEN_PASSES,
+    )?;
+    if json {
+        let value = serde_json::json!({ "written": figures });
+        outln!(
+            "{}",
+            serde_json::to_string_pretty(&value).expect("figures serialise")
+        );
+    } else {
+        out!("{}", figures.to_text());
+    }
+    Ok(())
+}
 
 fn bench(
     json: bool,

@@ -5,7 +5,7 @@
 //! with the file and line.
 
 mod common;
-use common::{snell, TINY};
+use common::{csv_with_header, snell, stdout_of_success, text_of, TINY};
 
 use std::path::{Path, PathBuf};
 
@@ -21,10 +21,6 @@ fn write_scene(dir: &Path, name: &str, text: &str) -> PathBuf {
     let path = dir.join(name);
     std::fs::write(&path, text).unwrap();
     path
-}
-
-fn text_of(bytes: &[u8]) -> String {
-    String::from_utf8_lossy(bytes).into_owned()
 }
 
 #[test]
@@ -43,15 +39,9 @@ fn chart_of_tiny_writes_one_row_per_configuration_and_valid_charts() {
         ],
         dir.path(),
     );
-    let (stdout, stderr) = (text_of(&output.stdout), text_of(&output.stderr));
-    assert!(
-        output.status.success(),
-        "stdout:\n{stdout}\nstderr:\n{stderr}"
-    );
-
-    let csv = std::fs::read_to_string(out.join("speed_accuracy.csv")).unwrap();
-    let mut lines = csv.lines();
-    assert_eq!(lines.next(), Some(CSV_HEADER));
+    let stdout = stdout_of_success(&output);
+    let csv = csv_with_header(&out.join("speed_accuracy.csv"), CSV_HEADER);
+    let lines = csv.lines().skip(1);
     assert_eq!(
         CSV_HEADER,
         "method,resolution,secs_per_frame,mean_px,p99_px"
@@ -140,11 +130,7 @@ fn render_with_budget(dir: &Path, max_error_px: &str) -> (QualityChoice, String,
         ],
         dir,
     );
-    let (stdout, stderr) = (text_of(&output.stdout), text_of(&output.stderr));
-    assert!(
-        output.status.success(),
-        "stdout:\n{stdout}\nstderr:\n{stderr}"
-    );
+    let stdout = stdout_of_success(&output);
     let cached: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join(budget::CHOICE_FILE_NAME)).unwrap())
             .unwrap();

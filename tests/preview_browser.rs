@@ -274,13 +274,7 @@ async fn preview_page_in_headless_chromium() {
         v["frame"] == frame_text
     })
     .await;
-    let label = client
-        .find(Locator::Css("#frame-label"))
-        .await
-        .unwrap()
-        .text()
-        .await
-        .unwrap();
+    let label = text(&client, "#frame-label").await;
     assert!(
         label.contains(&format!("frame {frame} / 48")),
         "label {label:?}"
@@ -330,13 +324,7 @@ async fn preview_page_in_headless_chromium() {
     })
     .await;
     assert_eq!(recovered["frame"], frame.to_string());
-    let notice = client
-        .find(Locator::Css("#notice"))
-        .await
-        .unwrap()
-        .text()
-        .await
-        .unwrap();
+    let notice = text(&client, "#notice").await;
     assert!(notice.contains("reloaded"), "notice {notice:?}");
     assert_eq!(
         max_channel_difference(&shown_pixels(&client).await, &cli_pixels),
@@ -374,6 +362,37 @@ fn render_exrs(scene: &Path, frames: &str, size: &str, extra: &[&str], out: &Pat
         .status()
         .expect("snell render runs");
     assert!(status.success(), "snell render {frames} {extra:?}");
+}
+
+/// The element `css` selects.
+async fn element(client: &Client, css: &str) -> fantoccini::elements::Element {
+    client
+        .find(Locator::Css(css))
+        .await
+        .unwrap_or_else(|error| panic!("{css}: {error}"))
+}
+
+/// Clicks the element `css` selects, then takes the focus off it, so that the next key press
+/// goes to the page's shortcuts and not to the control.
+async fn click(client: &Client, css: &str) {
+    element(client, css)
+        .await
+        .click()
+        .await
+        .unwrap_or_else(|error| panic!("clicking {css}: {error}"));
+    client
+        .execute("document.activeElement.blur();", vec![])
+        .await
+        .expect("the focus leaves the control");
+}
+
+/// The text of the element `css` selects.
+async fn text(client: &Client, css: &str) -> String {
+    element(client, css)
+        .await
+        .text()
+        .await
+        .unwrap_or_else(|error| panic!("the text of {css}: {error}"))
 }
 
 /// Presses and releases `key` as a keyboard would (real key events, through WebDriver).
@@ -650,13 +669,7 @@ async fn compare_zoom_layers_and_inspector_in_headless_chromium() {
     assert_eq!(wiped, json!(["frame", "frame-b"]), "wipe");
     press(&client, 'd').await;
     assert_eq!(client.execute(ON_TOP, vec![]).await.unwrap(), "frame-diff");
-    let legend = client
-        .find(Locator::Css("#legend"))
-        .await
-        .unwrap()
-        .text()
-        .await
-        .unwrap();
+    let legend = text(&client, "#legend").await;
     assert!(
         legend.contains("|A - B|") && legend.contains("pixels differ"),
         "legend {legend:?}"
@@ -714,13 +727,7 @@ async fn compare_zoom_layers_and_inspector_in_headless_chromium() {
         max_channel_difference(&depth_pixels, &a_pixels) > 32,
         "the Z view differs from the beauty"
     );
-    let legend = client
-        .find(Locator::Css("#legend"))
-        .await
-        .unwrap()
-        .text()
-        .await
-        .unwrap();
+    let legend = text(&client, "#legend").await;
     assert!(
         legend.starts_with("Z: ") && legend.contains(" m "),
         "legend {legend:?}"
@@ -869,17 +876,7 @@ async fn a_folder_of_exrs_plays_back_and_inspects_in_headless_chromium() {
         field.clear().await.unwrap();
         field.send_keys(value).await.unwrap();
     }
-    client
-        .find(Locator::Css("#loop"))
-        .await
-        .unwrap()
-        .click()
-        .await
-        .unwrap();
-    client
-        .execute("document.activeElement.blur();", vec![])
-        .await
-        .unwrap();
+    click(&client, "#loop").await;
     let current = "return Number(document.getElementById('slider').value);";
     press(&client, 'l').await;
     let mut seen = std::collections::BTreeSet::new();
@@ -904,13 +901,7 @@ async fn a_folder_of_exrs_plays_back_and_inspects_in_headless_chromium() {
         "only the loop range (and where it started, 4): saw {seen:?}"
     );
     press(&client, 'l').await;
-    let shuttle = client
-        .find(Locator::Css("#shuttle"))
-        .await
-        .unwrap()
-        .text()
-        .await
-        .unwrap();
+    let shuttle = text(&client, "#shuttle").await;
     assert!(
         shuttle.contains('2'),
         "L again doubles the speed: {shuttle:?}"
@@ -923,17 +914,7 @@ async fn a_folder_of_exrs_plays_back_and_inspects_in_headless_chromium() {
         stopped,
         "K stops"
     );
-    client
-        .find(Locator::Css("#loop"))
-        .await
-        .unwrap()
-        .click()
-        .await
-        .unwrap();
-    client
-        .execute("document.activeElement.blur();", vec![])
-        .await
-        .unwrap();
+    click(&client, "#loop").await;
     press(&client, 'j').await;
     let start = stopped.as_u64().unwrap();
     let mut backwards = false;

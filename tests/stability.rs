@@ -7,7 +7,7 @@
 //! --oracle-only.
 
 mod common;
-use common::{snell, TINY};
+use common::{csv_with_header, snell, stdout_of_success, text_of, TINY};
 
 use std::collections::HashMap;
 use std::path::Path;
@@ -18,10 +18,6 @@ use snell::stability::{
 };
 
 const SIZE: &str = "96x54";
-
-fn text_of(bytes: &[u8]) -> String {
-    String::from_utf8_lossy(bytes).into_owned()
-}
 
 fn rows_of(csv: &str) -> Vec<HashMap<String, String>> {
     let mut lines = csv.lines();
@@ -65,14 +61,8 @@ fn stability_of_tiny_measures_every_frame_and_method() {
         ],
         dir.path(),
     );
-    let (stdout, stderr) = (text_of(&output.stdout), text_of(&output.stderr));
-    assert!(
-        output.status.success(),
-        "stdout:\n{stdout}\nstderr:\n{stderr}"
-    );
-
-    let csv = std::fs::read_to_string(out.join(CSV_FILE_NAME)).unwrap();
-    assert_eq!(csv.lines().next().unwrap(), csv_header());
+    let stdout = stdout_of_success(&output);
+    let csv = csv_with_header(&out.join(CSV_FILE_NAME), &csv_header());
     let rows = rows_of(&csv);
     let keys: Vec<(String, String)> = rows
         .iter()
@@ -186,13 +176,8 @@ fn stability_oracle_only_reports_the_multi_image_share_per_frame() {
         ],
         dir.path(),
     );
-    let (stdout, stderr) = (text_of(&output.stdout), text_of(&output.stderr));
-    assert!(
-        output.status.success(),
-        "stdout:\n{stdout}\nstderr:\n{stderr}"
-    );
-    let csv = std::fs::read_to_string(out.join(ORACLE_CSV_FILE_NAME)).unwrap();
-    assert_eq!(csv.lines().next().unwrap(), ORACLE_CSV_HEADER);
+    let stdout = stdout_of_success(&output);
+    let csv = csv_with_header(&out.join(ORACLE_CSV_FILE_NAME), ORACLE_CSV_HEADER);
     let rows = rows_of(&csv);
     assert_eq!(
         rows.iter().map(|r| r["frame"].as_str()).collect::<Vec<_>>(),

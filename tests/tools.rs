@@ -355,6 +355,23 @@ fn compare_of_a_frame_with_itself_is_zero_and_bad_input_is_exit_2() {
     assert!(mean > 0.0 && mean < 8.0, "{json}");
     assert!(json["flip_mean"].as_f64().unwrap() > 0.0);
 
+    // --flags-from chooses whose flags define "flagged", and the report says which and why.
+    for side in ["A", "B"] {
+        let output = compare(&frame1, &frame2, &["--json", "--flags-from", side]);
+        expect_exit(&output, 0, &[]);
+        let json: serde_json::Value = serde_json::from_str(&stdout_of(&output)).unwrap();
+        assert_eq!(json["flags_from"], side, "{json}");
+        let reason = json["flags_reason"].as_str().unwrap_or_default();
+        assert!(reason.contains("--flags-from"), "{side}: {json}");
+    }
+    let text = stdout_of(&compare(&frame1, &frame2, &["--flags-from", "A"]));
+    assert!(text.contains("--flags-from"), "the table says why:\n{text}");
+    expect_exit(
+        &compare(&frame1, &frame2, &["--flags-from", "C"]),
+        2,
+        &["choose A"],
+    );
+
     expect_exit(
         &compare(&frame1, &dir.path().join("nope.exr"), &[]),
         2,

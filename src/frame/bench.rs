@@ -65,7 +65,7 @@ pub struct WrittenFigures {
 }
 
 impl WrittenFigures {
-    fn to_text(&self) -> String {
+    pub fn to_text(&self) -> String {
         format!(
             "whole `snell render` of {} frames {}-{} at {}x{}, per frame (amortised; median of {} passes):\n\
              \x20 unwritten {:.0} ms; --layers comp {:.0} ms ({:.2}x; target at most 1.3x; {:.1} MB, write stage {:.0} ms); \
@@ -606,8 +606,8 @@ fn character_throughput(fox: &Path) -> Result<(f64, f64), SnellError> {
 }
 
 /// Frames of each pass of [`written_times`] in `snell bench`, and its passes.
-const WRITTEN_FRAMES: u32 = 8;
-const WRITTEN_PASSES: u32 = 3;
+pub const WRITTEN_FRAMES: u32 = 8;
+pub const WRITTEN_PASSES: u32 = 3;
 
 pub fn run(
     scene_path: &Path,

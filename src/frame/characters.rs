@@ -420,4 +420,67 @@ mod tests {
         std::fs::write(&model, &changed).unwrap();
         assert_ne!(key_of(&scene_file), edited_scene);
     }
+
+    /// One scene object id per character, whatever the number of its glTF primitives (issue 14
+    /// point 1: each primitive had an id of its own, 62 in a BrainStem frame), and so one name in
+    /// the header and the Cryptomatte manifest. `tests/gltf/external.gltf` draws three primitives
+    /// (a fourth, of points, is skipped) after tiny.toml's four static objects: the frame's
+    /// materials are the statics' and then the three, and every pixel the renderer labels with one
+    /// of the three gets the character's id.
+    #[test]
+    fn every_primitive_of_a_character_gets_the_characters_one_id() {
+        let dir = tempfile::tempdir().unwrap();
+        let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+        for file in ["external.gltf", "external.bin", "external_texture.png"] {
+            std::fs::copy(root.join("tests/gltf").join(file), dir.path().join(file)).unwrap();
+        }
+        let tiny = std::fs::read_to_string(root.join("scenes/tiny.toml")).unwrap();
+        let scene = dir.path().join("shapes.toml");
+        let character = "[[character]]\nname = \"shapes\"\nfile = \"external.gltf\"\n\
+                         scale = 0.1\n\n[[character.path]]\nframe = 1\nposition = [0.0, -0.5, 0.0]\n";
+        std::fs::write(&scene, format!("{tiny}\n{character}")).unwrap();
+        let job = super::super::RenderJob::prepare(&scene).unwrap();
+
+        let names = job.object_names();
+        assert_eq!(
+            names,
+            ["pool0.floor", "pool0.walls", "pool0.deck", "ball", "shapes"],
+            "one name per static object part and one for the character"
+        );
+        let primitives = job.dynamics.characters[0].asset.stored_primitives().len();
+        assert_eq!(primitives, 3, "external.gltf's drawn primitives");
+        let ids = job.object_ids();
+        assert_eq!(ids, [1, 2, 3, 4, 5, 5, 5]);
+        let refracted = job.refract(1, 32, 18, None).unwrap();
+        assert_eq!(
+            refracted.draw.materials.len(),
+            ids.len(),
+            "the frame draws the statics and then each primitive, one material each"
+        );
+
+        // A strip whose pixels the renderer labelled with each material in turn (1-based).
+        let pixels = ids.len() + 1;
+        let labels: Vec<u32> = (1..=ids.len() as u32)
+            .chain([crate::draw::NO_OBJECT])
+            .collect();
+        let strip = crate::draw::RenderedFrame {
+            width: pixels as u32,
+            height: 1,
+            beauty_rgba: vec![[0.0; 4]; pixels],
+            depth_m: vec![1.0; pixels],
+            apparent_depth_m: vec![1.0; pixels],
+            position: vec![[0.0; 3]; pixels],
+            flags: vec![0; pixels],
+            object: labels,
+            water_matte: vec![0.0; pixels],
+            water_reflection: vec![[0.0; 4]; pixels],
+            motion_px: vec![[0.0; 2]; pixels],
+        };
+        let checked = super::super::checked_strip(1, &ids, 0, strip).unwrap();
+        assert_eq!(
+            checked.object,
+            [1, 2, 3, 4, 5, 5, 5, crate::draw::NO_OBJECT],
+            "scene object ids: 5 is names[4], the character"
+        );
+    }
 }

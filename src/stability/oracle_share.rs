@@ -1,6 +1,7 @@
 //! How hard a frame is, by the truth: the share of the frame's under-water vertices that have two
 //! or more images by the independent image oracle ([`crate::oracle`]), which shares only the
-//! height field and its stated bounds with the methods measured. Receives a loaded job and a frame; returns
+//! height field and the water's stated bounds (the waves' and the ripples', taken here from the
+//! water itself, not from the renderer's exact surface) with the methods measured. Receives a loaded job and a frame; returns
 //! [`OracleShare`]. `snell stability` reports it per frame, so a hard scene that stopped being
 //! hard (smoothed water, a camera that no longer looks through the crests) shows.
 //!
@@ -18,7 +19,9 @@ use rayon::prelude::*;
 use crate::frame::{RenderJob, SnellError};
 use crate::oracle::{LocalBounds, OracleWater, RegionBounds};
 use crate::refraction::split::{Side, WaterVolume};
-use crate::refraction::surface::ExactSurface;
+use crate::sim::ripple_bounds::RippleBounds;
+use crate::sim::RippleField;
+use crate::water::WaterSurface;
 
 /// Under-water vertices measured per frame unless asked otherwise.
 pub const DEFAULT_SAMPLES: usize = 2_000;
@@ -67,16 +70,55 @@ impl OracleShare {
     }
 }
 
-/// The surface's stated bounds region by region ([`ExactSurface::bounds_over`]: the waves' over
-/// the whole plane plus the ripples' per tile, [`crate::sim::ripple_bounds::RippleBounds`]), the
-/// same statement of the water the renderer steps by; the oracle takes nothing else of it.
-impl LocalBounds for ExactSurface<'_> {
-    fn over(&self, min: DVec2, max: DVec2) -> RegionBounds {
-        let b = self.bounds_over(min.x, min.y, max.x, max.y);
+/// The surface's bounds as the water states them, taken from the water itself and not from the
+/// renderer's exact surface ([`crate::refraction::surface`]): the analytic waves' height range,
+/// slope and curvature bounds (they hold over the whole plane), plus, on water with ripples, the
+/// ripple field's, over the whole plane ([`crate::sim::RippleField::max_abs_height_m`],
+/// [`crate::sim::RippleField::slope_and_curvature_bounds`]) and per tile of its grid
+/// ([`RippleBounds`]). The sum of two fields' bounds bounds the sum (`|a + b| <= |a| + |b|`, for
+/// the heights and every derivative alike).
+struct StatedBounds {
+    waves_height_range_m: (f64, f64),
+    waves_slope: f64,
+    waves_curvature: f64,
+    ripples: Option<RippleBounds>,
+}
+
+impl StatedBounds {
+    fn of(waves: &WaterSurface, ripples: Option<&RippleField<'_>>) -> (Self, RegionBounds) {
+        let (waves_slope, waves_curvature) = waves.slope_and_curvature_bounds();
+        let stated = StatedBounds {
+            waves_height_range_m: waves.height_bounds_m(),
+            waves_slope,
+            waves_curvature,
+            ripples: ripples.map(RippleBounds::new),
+        };
+        let (reach, (slope, curvature)) = ripples.map_or((0.0, (0.0, 0.0)), |field| {
+            (field.max_abs_height_m(), field.slope_and_curvature_bounds())
+        });
+        let whole_plane = stated.with_ripples(reach, slope, curvature);
+        (stated, whole_plane)
+    }
+
+    /// The waves' bounds plus the ripples' `reach` (largest |height|), `slope` and `curvature`.
+    fn with_ripples(&self, reach: f64, slope: f64, curvature: f64) -> RegionBounds {
+        let (low, high) = self.waves_height_range_m;
         RegionBounds {
-            height_range_m: b.height_range_m,
-            slope_bound: b.slope,
-            curvature_bound: b.curvature,
+            height_range_m: (low - reach, high + reach),
+            slope_bound: self.waves_slope + slope,
+            curvature_bound: self.waves_curvature + curvature,
+        }
+    }
+}
+
+impl LocalBounds for StatedBounds {
+    fn over(&self, min: DVec2, max: DVec2) -> RegionBounds {
+        match &self.ripples {
+            Some(ripples) => {
+                let b = ripples.over(min.x, min.y, max.x, max.y);
+                self.with_ripples(b.reach_m, b.slope, b.curvature_per_m)
+            }
+            None => self.with_ripples(0.0, 0.0, 0.0),
         }
     }
 }
@@ -92,7 +134,7 @@ pub fn oracle_share(
     let mut stage_secs = Default::default();
     let water = job.frame_water(frame, &mut stage_secs)?;
     let heights = water.surface();
-    let surface = water.exact_surface(&heights);
+    let (stated, whole_plane) = StatedBounds::of(&water.waves_now, heights.ripples.as_ref());
     let volume = WaterVolume {
         surface: &heights,
         extent: water.membrane.grid,
@@ -107,15 +149,15 @@ pub fn oracle_share(
     let oracle = OracleWater {
         height_field: &heights,
         extent: water.membrane.grid,
-        height_range_m: surface.height_range_m,
-        slope_bound: surface.slope_bound,
-        curvature_bound: surface.curvature_bound,
+        height_range_m: whole_plane.height_range_m,
+        slope_bound: whole_plane.slope_bound,
+        curvature_bound: whole_plane.curvature_bound,
         n_above: job.scene.water.n_above,
         n_below: job.scene.water.n_below,
-        local_bounds: surface
-            .local_bounds
+        local_bounds: stated
+            .ripples
             .is_some()
-            .then_some(&surface as &dyn LocalBounds),
+            .then_some(&stated as &dyn LocalBounds),
     };
     let stride = if max_samples == 0 {
         1

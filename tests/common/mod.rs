@@ -30,3 +30,27 @@ pub fn render_args(scene: &Path, out: &Path, frames: &str, size: &str) -> Vec<St
         size.into(),
     ]
 }
+
+/// What a command printed, as text.
+pub fn text_of(bytes: &[u8]) -> String {
+    String::from_utf8_lossy(bytes).into_owned()
+}
+
+/// Asserts that the command of `output` exited 0 (showing both its streams when not) and
+/// returns what it printed on stdout.
+pub fn stdout_of_success(output: &Output) -> String {
+    let (stdout, stderr) = (text_of(&output.stdout), text_of(&output.stderr));
+    assert!(
+        output.status.success(),
+        "stdout:\n{stdout}\nstderr:\n{stderr}"
+    );
+    stdout
+}
+
+/// The CSV file at `path`, whose first line must be `header`: its whole text.
+pub fn csv_with_header(path: &Path, header: &str) -> String {
+    let csv =
+        std::fs::read_to_string(path).unwrap_or_else(|error| panic!("{}: {error}", path.display()));
+    assert_eq!(csv.lines().next(), Some(header), "{}", path.display());
+    csv
+}

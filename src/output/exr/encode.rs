@@ -276,7 +276,7 @@ impl<W: std::io::Write + std::io::Seek> ChunkStream<W> {
                         }
                     }
                     match compression {
-                        // libdeflate (see zip.rs); the exr crate's codecs for the rest.
+                        // zlib-rs (see zip.rs); the exr crate's codecs for the rest.
                         Compression::ZIP16 | Compression::ZIP1 => {
                             super::zip::append_chunk(&bytes, &mut chunk_bytes)
                         }

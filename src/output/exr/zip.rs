@@ -72,6 +72,9 @@ pub(crate) fn append_chunk(native: &[u8], out: &mut Vec<u8>) {
 /// before it in that sequence plus 128, mod 256 (the predictor; the first byte kept). One pass
 /// over the chunk instead of two, and no buffer between them: a split byte's predecessor is two
 /// bytes back in `bytes`, except for the first odd byte, whose predecessor is the last even one.
+/// Sixteen pairs at a time with AVX2 where the CPU has it (4-5x faster than one pair at a time:
+/// 6.4-7.3 ms instead of 28-35 ms for the 16-line chunks of a 1280x720 `all` frame, one thread;
+/// the same bytes, tested).
 fn separate_and_predict(bytes: &[u8], out: &mut Vec<u8>) {
     let n = bytes.len();
     out.clear();
@@ -83,21 +86,75 @@ fn separate_and_predict(bytes: &[u8], out: &mut Vec<u8>) {
     let half = n.div_ceil(2);
     let (evens, odds) = out.split_at_mut(half);
     evens[0] = bytes[0];
-    // evens[k] = bytes[2k] - bytes[2k-2], odds[k] = bytes[2k+1] - bytes[2k-1] (k >= 1).
-    for ((pair, before), (even, odd)) in bytes[2..]
-        .chunks_exact(2)
-        .zip(bytes.chunks_exact(2))
-        .zip(evens[1..].iter_mut().zip(odds[1..].iter_mut()))
-    {
-        *even = pair[0].wrapping_sub(before[0]).wrapping_add(128);
-        *odd = pair[1].wrapping_sub(before[1]).wrapping_add(128);
+    // Pair k is bytes[2k], bytes[2k+1]: evens[k] = bytes[2k] - bytes[2k-2] + 128 and
+    // odds[k] = bytes[2k+1] - bytes[2k-1] + 128 for 1 <= k < pairs.
+    let pairs = n / 2;
+    let mut next = 1;
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU has AVX2 (detected above).
+        next = unsafe { predict_pairs_avx2(bytes, evens, odds, pairs) };
+    }
+    for k in next..pairs {
+        evens[k] = bytes[2 * k]
+            .wrapping_sub(bytes[2 * k - 2])
+            .wrapping_add(128);
+        odds[k] = bytes[2 * k + 1]
+            .wrapping_sub(bytes[2 * k - 1])
+            .wrapping_add(128);
     }
     if n % 2 == 1 {
-        // The last even byte has no odd partner, so the loop above stopped before it.
+        // The last even byte has no odd partner, so the pairs stop before it.
         evens[half - 1] = bytes[n - 1].wrapping_sub(bytes[n - 3]).wrapping_add(128);
     }
     let last_even = bytes[2 * (half - 1)];
     odds[0] = bytes[1].wrapping_sub(last_even).wrapping_add(128);
+}
+
+/// Pairs 1, 2, ... of [`separate_and_predict`] sixteen at a time, while sixteen remain before
+/// `pairs`; returns the first pair not done. Each step: the 32 bytes of pairs k..k+16 minus the
+/// 32 bytes two before them, plus 128 (a flip of the top bit), then the evens and odds of each
+/// 128-bit lane gathered (a byte shuffle) and the lanes' halves ordered evens first (a 64-bit
+/// permute).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn predict_pairs_avx2(
+    bytes: &[u8],
+    evens: &mut [u8],
+    odds: &mut [u8],
+    pairs: usize,
+) -> usize {
+    use std::arch::x86_64::{
+        __m128i, __m256i, _mm256_castsi256_si128, _mm256_extracti128_si256, _mm256_loadu_si256,
+        _mm256_permute4x64_epi64, _mm256_set1_epi8, _mm256_setr_epi8, _mm256_shuffle_epi8,
+        _mm256_sub_epi8, _mm256_xor_si256, _mm_storeu_si128,
+    };
+    assert!(2 * pairs <= bytes.len() && pairs <= evens.len() && pairs <= odds.len());
+    let split = _mm256_setr_epi8(
+        0, 2, 4, 6, 8, 10, 12, 14, 1, 3, 5, 7, 9, 11, 13, 15, 0, 2, 4, 6, 8, 10, 12, 14, 1, 3, 5,
+        7, 9, 11, 13, 15,
+    );
+    let top_bit = _mm256_set1_epi8(-128);
+    let mut k = 1;
+    while k + 16 <= pairs {
+        // SAFETY: bytes 2k-2 .. 2k+32 <= 2 pairs, and evens and odds k .. k+16 <= pairs, are in
+        // the slices (asserted above); the loads and stores are unaligned.
+        let now = _mm256_loadu_si256(bytes.as_ptr().add(2 * k).cast::<__m256i>());
+        let before = _mm256_loadu_si256(bytes.as_ptr().add(2 * k - 2).cast::<__m256i>());
+        let predicted = _mm256_xor_si256(_mm256_sub_epi8(now, before), top_bit);
+        let lanes = _mm256_shuffle_epi8(predicted, split);
+        let grouped = _mm256_permute4x64_epi64::<0b11_01_10_00>(lanes);
+        _mm_storeu_si128(
+            evens.as_mut_ptr().add(k).cast::<__m128i>(),
+            _mm256_castsi256_si128(grouped),
+        );
+        _mm_storeu_si128(
+            odds.as_mut_ptr().add(k).cast::<__m128i>(),
+            _mm256_extracti128_si256::<1>(grouped),
+        );
+        k += 16;
+    }
+    k
 }
 
 #[cfg(test)]
@@ -245,6 +302,35 @@ mod tests {
         }
     }
 
+    /// ImfZip.cpp's two steps, one after the other, as OpenEXR writes them: the split into even-
+    /// and odd-indexed bytes, then the predictor over the split bytes.
+    fn split_then_predict(bytes: &[u8]) -> Vec<u8> {
+        let mut split: Vec<u8> = bytes.iter().step_by(2).copied().collect();
+        split.extend(bytes.iter().skip(1).step_by(2));
+        let mut predicted = split.clone();
+        for i in 1..split.len() {
+            predicted[i] = split[i].wrapping_sub(split[i - 1]).wrapping_add(128);
+        }
+        predicted
+    }
+
+    #[test]
+    fn the_one_pass_transform_is_the_two_steps_at_every_length() {
+        // Every length up to several 32-byte steps (the AVX2 path and the tail after it), odd
+        // and even, on noise and on a smooth ramp; then a whole 16-line chunk of a frame.
+        let mut predicted = Vec::new();
+        for len in 0..=300 {
+            for smooth in [false, true] {
+                let bytes = samples(len, len as u64 + 1, smooth);
+                separate_and_predict(&bytes, &mut predicted);
+                assert_eq!(predicted, split_then_predict(&bytes), "{len} bytes");
+            }
+        }
+        let chunk = samples(1281 * 16 * 10 + 3, 17, true);
+        separate_and_predict(&chunk, &mut predicted);
+        assert_eq!(predicted, split_then_predict(&chunk));
+    }
+
     #[test]
     fn the_same_chunk_gives_the_same_bytes_on_every_thread() {
         let native = samples(1280 * 16 * 10, 11, true);
@@ -278,7 +364,7 @@ mod tests {
     /// by layer (`R, G, B, A` as the beauty), each group's 16-line (ZIP) and 1-line (ZIPS) chunks
     /// built as the writer builds them (rows of each channel's samples, name order), then per
     /// group the CPU of the split and predictor alone, of the whole ZIP chunk (split, predictor and
-    /// libdeflate) and of the `exr` crate's RLE (1-line chunks, with ZIPS's row), and the bytes each gives; best of 5 on one thread.
+    /// zlib-rs) and of the `exr` crate's RLE (1-line chunks, with ZIPS's row), and the bytes each gives; best of 5 on one thread.
     /// `SNELL_LAYER_COSTS_EXR=frame.exr cargo test --release --lib
     /// output::exr::zip::tests::layer_costs -- --ignored --nocapture` (any compression: the
     /// samples are read back first).
