@@ -971,6 +971,21 @@ impl RenderJob {
                 object.mesh.triangle_count()
             );
         }
+        if !scene.vessels.is_empty() {
+            let _ = writeln!(
+                text,
+                "vessels    {} (validated; not drawn yet, issue 18)",
+                scene.vessels.len()
+            );
+            for spec in scene.vessels.iter() {
+                let _ = writeln!(
+                    text,
+                    "           - {}: {}",
+                    spec.name,
+                    spec.vessel.describe()
+                );
+            }
+        }
         let _ = match &scene.camera {
             crate::scene::CameraSpec::Keys(keys) => {
                 writeln!(text, "camera     {} keyframe(s)", keys.len())
