@@ -211,10 +211,11 @@ impl Cylinder {
             return;
         }
         let region = self.region_of(point);
-        if !self.segment_meets_glass(eye, point)
-            && !(self.inside == Medium::Water
-                && self.within(eye, point, self.inner_radius_m).is_some())
-        {
+        // The direct view: the straight segment misses the glass (and, with water inside, does
+        // not pass through the water, whose surface is the water stage's).
+        let through_water =
+            self.inside == Medium::Water && self.within(eye, point, self.inner_radius_m).is_some();
+        if !(self.segment_meets_glass(eye, point) || through_water) {
             out.push(image_from_path(eye, &[], point, &[AIR_INDEX], true, 0));
         }
         let problem = Problem {
@@ -534,10 +535,9 @@ impl Problem<'_> {
         };
         let mut crossings = [DVec3::ZERO; MAX_CROSSINGS];
         let mut y = eye_height;
-        for i in 0..k {
-            let segment = passage.walk.segments[i];
+        for (crossing, segment) in crossings.iter_mut().zip(&passage.walk.segments).take(k) {
             y += beta / m[segment.region] * (segment.s_end - segment.s_start);
-            crossings[i] = to_world(segment.b, segment.s_end, segment.phi_at(segment.s_end), y);
+            *crossing = to_world(segment.b, segment.s_end, segment.phi_at(segment.s_end), y);
         }
         let last = passage.walk.segments[k];
         y += beta / m[last.region] * (passage.s - last.s_start);
