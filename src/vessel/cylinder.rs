@@ -44,13 +44,16 @@
 //!
 //! **Solver.** `beta` starts at the straight line's `n_0 (V - E) . A / |V - E|`. At that `beta`
 //! every root in `J` of every label is bracketed by a scan ([`SCAN_SAMPLES`] samples on each piece
-//! of `(-m_0 r_2, m_0 r_2)` between the points where a label appears or the path changes: `+-m_1
-//! r_1`, `+-m_2 r_1`, `+-m rho_V`) and refined by the Illinois method to `|phi error| <= 1e-13`.
-//! Each root then alternates: Newton on `beta` with the lengths held (`d/dbeta = sum l_k n_k^2 /
-//! m_k^3`), then Newton on `J` (central difference) at that `beta`, until `beta` moves less than
-//! 1e-14 and the end of the rebuilt 3-D path is within [`super::position_tolerance_m`] of the point;
-//! at most [`MAX_ROUNDS`] rounds (1 when the eye and the point are level: `beta = 0` exactly).
-//! Two roots closer than one scan step in `J` (a caustic) can be missed: the brute-force count
+//! of the `J` range that can reach the point's radius, cut where a label appears or the path
+//! changes: `+-m_1 r_1`, `+-m_2 r_1`, `+-m rho_V`) and refined by the Illinois method to `|phi
+//! error| <= 1e-13`. Each root then takes Newton steps on `(J, beta)` together (Jacobian by
+//! forward differences, steps halved until the residual drops) until both equations hold to
+//! 1e-4 of [`super::position_tolerance_m`]; where Newton stalls, the alternating fixed point
+//! (Newton on `beta` with the lengths held, then on `J`, until `beta` moves less than 1e-14)
+//! finishes. The image is converged when the end of its rebuilt 3-D path is within that
+//! tolerance of the point. At most [`MAX_ROUNDS`] steps of each (none when the eye and the point
+//! are level: `beta = 0` exactly). Two roots closer than one scan step in `J` (a
+//! caustic) can be missed: the brute-force count
 //! in the tests measures how often at the default sampling. A path with a crossing above the
 //! wall's height or under its base is no image (the rims absorb).
 
@@ -60,7 +63,7 @@ use super::{image_from_path, position_tolerance_m, Image, Medium, AIR_INDEX, MAX
 
 /// Samples per piece of the `J` range when bracketing the roots.
 pub const SCAN_SAMPLES: usize = 24;
-/// Most rounds of the alternating `beta` / `J` refinement of one image.
+/// Most Newton steps in `(J, beta)` for one image.
 pub const MAX_ROUNDS: u32 = 40;
 /// Most Illinois steps when refining one bracketed root.
 const MAX_BRACKET_STEPS: u32 = 100;
@@ -104,8 +107,11 @@ struct Segment {
 }
 
 impl Segment {
+    /// The polar angle at `s`: `phi_start` plus the angle from `(s_start, -b)` to `(s, -b)`, one
+    /// `atan2` of their cross and dot products (the angle a line sweeps is under pi).
     fn phi_at(&self, s: f64) -> f64 {
-        self.phi_start + (-self.b).atan2(s) - (-self.b).atan2(self.s_start)
+        let b = self.b;
+        self.phi_start + (b * (s - self.s_start)).atan2(self.s_start * s + b * b)
     }
 }
 
@@ -336,14 +342,23 @@ impl Problem<'_> {
         self.passage(&walk, label, self.region())
     }
 
-    /// The `J` range's pieces: between the points where a label appears or the path changes.
+    /// The `J` range's pieces: between the points where a label appears or the path changes, up
+    /// to the largest `|J|` at which a path can pass the point's radius in its region.
     fn pieces(&self, beta: f64) -> Vec<f64> {
         let m = self.effective(beta);
         let (r1, r2) = (self.cylinder.inner_radius_m, self.cylinder.outer_radius_m);
         let j_max = m[0] * r2;
-        let mut cuts = vec![-j_max, 0.0, j_max];
-        for c in [m[1] * r1, m[2] * r1, m[self.region()] * self.rho_v] {
-            if c < j_max {
+        let region = self.region();
+        let top = match region {
+            // Into the inside (|b_glass| < r1, no total reflection) and down to rho_V there.
+            2 => j_max.min(m[1] * r1).min(m[2] * r1).min(m[2] * self.rho_v),
+            // Down to rho_V in the glass.
+            1 => j_max.min(m[1] * self.rho_v),
+            _ => j_max,
+        };
+        let mut cuts = vec![-top, 0.0, top];
+        for c in [m[1] * r1, m[2] * r1, m[region] * self.rho_v] {
+            if c < top {
                 cuts.extend([-c, c]);
             }
         }
@@ -432,6 +447,22 @@ impl Problem<'_> {
 
     /// Refines one root in `(J, beta)` and rebuilds its 3-D path; None when the path leaves the
     /// wall's height (the rims absorb) or its label vanishes.
+    /// The two equations of an image at `(j, beta)`, both in metres: the polar-angle error times
+    /// the point's radius, and the axial rise's error.
+    fn equations(&self, label: Label, j: f64, beta: f64) -> Option<([f64; 2], Passage)> {
+        let passage = self.residual(label, j, beta)?;
+        let m = self.effective(beta);
+        let k = label.0;
+        let rise: f64 = Self::lengths(&passage, k)[..=k]
+            .iter()
+            .map(|&(l, region)| beta * l / m[region])
+            .sum();
+        Some((
+            [passage.residual * self.rho_v.max(1e-300), rise - self.rise],
+            passage,
+        ))
+    }
+
     fn solve(
         &self,
         label: Label,
@@ -443,15 +474,99 @@ impl Problem<'_> {
     ) -> Option<Image> {
         let k = label.0;
         let n = self.indices;
-        let n_min = n.iter().fold(f64::INFINITY, |a, &b| a.min(b));
+        let beta_max = n.iter().fold(f64::INFINITY, |a, &b| a.min(b)) * (1.0 - 1e-12);
         let (mut j, mut beta) = (j_start, beta_start);
         let tolerance = position_tolerance_m(eye, point);
-        let mut rounds = 0;
+        let (mut f, mut passage) = self.equations(label, j, beta)?;
+        let norm = |f: [f64; 2]| f[0].abs().max(f[1].abs());
+        let h_j = 1e-8 * self.cylinder.outer_radius_m;
+        const H_BETA: f64 = 1e-8;
+        let mut iterations = 0;
+        // Newton on both unknowns at once, the Jacobian by forward differences (stepping the
+        // other way at the edge of the label's range), each step halved until the equations
+        // hold less badly.
+        let target = 1e-4 * tolerance;
+        while iterations < MAX_ROUNDS && norm(f) > target {
+            iterations += 1;
+            let column = |dj: f64, db: f64| {
+                self.equations(label, j + dj, beta + db)
+                    .map(|(g, _)| [(g[0] - f[0]) / (dj + db), (g[1] - f[1]) / (dj + db)])
+            };
+            let (Some(cj), Some(cb)) = (
+                column(h_j, 0.0).or_else(|| column(-h_j, 0.0)),
+                column(0.0, H_BETA).or_else(|| column(0.0, -H_BETA)),
+            ) else {
+                break;
+            };
+            let det = cj[0] * cb[1] - cb[0] * cj[1];
+            if det == 0.0 || !det.is_finite() {
+                break;
+            }
+            let step_j = -(f[0] * cb[1] - cb[0] * f[1]) / det;
+            let step_beta = -(cj[0] * f[1] - f[0] * cj[1]) / det;
+            let mut t = 1.0;
+            let accepted = loop {
+                let (jt, bt) = (
+                    j + t * step_j,
+                    (beta + t * step_beta).clamp(-beta_max, beta_max),
+                );
+                if let Some((ft, pt)) = self.equations(label, jt, bt) {
+                    if norm(ft) < norm(f) {
+                        break Some((jt, bt, ft, pt));
+                    }
+                }
+                t *= 0.5;
+                if t < 1e-6 {
+                    break None;
+                }
+            };
+            let Some((jt, bt, ft, pt)) = accepted else {
+                break;
+            };
+            (j, beta, f, passage) = (jt, bt, ft, pt);
+        }
+        if norm(f) > target {
+            // Newton stalled (a few vertices in 10,000, near the edge of a label's range): the
+            // alternating fixed point finishes from where it stopped.
+            let (rounds, alternated) = self.alternate(label, j, beta)?;
+            iterations += rounds;
+            (j, beta) = alternated;
+            passage = self.residual(label, j, beta)?;
+        }
+        let (crossings, end) = self.rebuild(&passage, k, beta, eye_height);
+        let height = self.cylinder.height_m;
+        let crossings = &crossings[..k];
+        if crossings.iter().any(|&c| {
+            let y = (c - self.cylinder.base).dot(self.cylinder.axis);
+            !(0.0..=height).contains(&y)
+        }) {
+            return None;
+        }
+        let mut indices = [0.0; MAX_CROSSINGS + 1];
+        for (i, index) in indices.iter_mut().enumerate().take(k + 1) {
+            *index = n[passage.walk.segments[i].region];
+        }
+        let converged = (end - point).length() <= tolerance;
+        Some(image_from_path(
+            eye,
+            crossings,
+            point,
+            &indices[..=k],
+            converged,
+            iterations,
+        ))
+    }
+
+    /// The alternating fixed point: Newton on `beta` with the lengths held, then Newton on `J`
+    /// (central difference) at that `beta`, until `beta` moves less than 1e-14 and the angle
+    /// holds to [`ANGLE_TOLERANCE`]; rounds spent and the result, None if the label vanishes.
+    fn alternate(&self, label: Label, j: f64, beta: f64) -> Option<(u32, (f64, f64))> {
+        let k = label.0;
+        let n = self.indices;
+        let beta_max = n.iter().fold(f64::INFINITY, |a, &b| a.min(b)) * (1.0 - 1e-12);
+        let (mut j, mut beta) = (j, beta);
         let mut passage = self.residual(label, j, beta)?;
-        let mut converged = false;
-        while rounds < MAX_ROUNDS {
-            rounds += 1;
-            // Newton on beta, lengths held.
+        for round in 1..=MAX_ROUNDS {
             let lengths = Self::lengths(&passage, k);
             let beta_before = beta;
             for _ in 0..30 {
@@ -462,12 +577,11 @@ impl Problem<'_> {
                     slope += l * n[region] * n[region] / (q * q.sqrt());
                 }
                 let step = (rise - self.rise) / slope;
-                beta = (beta - step).clamp(-n_min * (1.0 - 1e-12), n_min * (1.0 - 1e-12));
+                beta = (beta - step).clamp(-beta_max, beta_max);
                 if step.abs() <= 1e-15 {
                     break;
                 }
             }
-            // Newton on J at that beta.
             let h = 1e-7 * self.effective(beta)[0] * self.cylinder.outer_radius_m;
             for _ in 0..30 {
                 passage = self.residual(label, j, beta)?;
@@ -488,35 +602,11 @@ impl Problem<'_> {
                 j -= passage.residual / slope;
             }
             passage = self.residual(label, j, beta)?;
-            let (crossings, end) = self.rebuild(&passage, k, beta, eye_height);
-            let miss_m = (end - point).length();
-            if (beta - beta_before).abs() <= 1e-14 && miss_m <= tolerance {
-                converged = true;
-            }
-            if converged || rounds == MAX_ROUNDS {
-                let height = self.cylinder.height_m;
-                let crossings = &crossings[..k];
-                if crossings.iter().any(|&c| {
-                    let y = (c - self.cylinder.base).dot(self.cylinder.axis);
-                    !(0.0..=height).contains(&y)
-                }) {
-                    return None;
-                }
-                let mut indices = [0.0; MAX_CROSSINGS + 1];
-                for (i, index) in indices.iter_mut().enumerate().take(k + 1) {
-                    *index = n[passage.walk.segments[i].region];
-                }
-                return Some(image_from_path(
-                    eye,
-                    crossings,
-                    point,
-                    &indices[..=k],
-                    converged && miss_m <= tolerance,
-                    rounds,
-                ));
+            if (beta - beta_before).abs() <= 1e-14 && passage.residual.abs() <= ANGLE_TOLERANCE {
+                return Some((round, (j, beta)));
             }
         }
-        None
+        Some((MAX_ROUNDS, (j, beta)))
     }
 
     /// The 3-D crossings of a passage's path and the path's end at the passage.

@@ -32,6 +32,7 @@
 //!   glass seen from above) belong to the water's refraction stage and are not enumerated here.
 //! - The eye must be outside the vessel's glass and, for a cylinder, outside its outer radius.
 
+pub mod bench;
 pub mod cylinder;
 pub mod pane;
 #[cfg(test)]

@@ -472,6 +472,8 @@ fn image_counts_per_point_match_a_brute_force_fan_of_traced_rays() {
             points.push(DVec2::from_angle(angle) * rho);
         }
         let (mut compared, mut with_several) = (0, 0);
+        const OTHER_SAMPLES: [usize; 4] = [4, 6, 12, 48];
+        let mut other_mismatches = [0usize; 4];
         for &p in &points {
             // Only points the fan can see past the glass's far side matter for "behind"; all count.
             let mut brute = [0usize; 5];
@@ -504,6 +506,16 @@ fn image_counts_per_point_match_a_brute_force_fan_of_traced_rays() {
                 }
                 previous = now;
             }
+            // Other scan densities, for the record (printed, not asserted).
+            for (slot, &samples) in OTHER_SAMPLES.iter().enumerate() {
+                let mut images = Vec::new();
+                cylinder.images_with_samples(eye, DVec3::new(p.x, 0.0, p.y), samples, &mut images);
+                let mut counts = [0usize; 5];
+                for image in images.iter().filter(|i| i.refractions > 0) {
+                    counts[image.refractions as usize] += 1;
+                }
+                other_mismatches[slot] += usize::from(counts != brute);
+            }
             let mut images = Vec::new();
             cylinder.images(eye, DVec3::new(p.x, 0.0, p.y), &mut images);
             let mut solved = [0usize; 5];
@@ -527,6 +539,10 @@ fn image_counts_per_point_match_a_brute_force_fan_of_traced_rays() {
         assert!(
             with_several > 10,
             "{inside:?}: only {with_several} points with several images"
+        );
+        println!(
+            "{inside:?}: points the solver miscounts with {OTHER_SAMPLES:?} scan samples per piece: {other_mismatches:?} (default {})",
+            super::cylinder::SCAN_SAMPLES
         );
         println!(
             "{inside:?}: {compared} points agree with the fan, {with_several} with several images"
