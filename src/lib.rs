@@ -12,6 +12,9 @@
 //!    [`reference`]  — the ray-traced reference over the same stage-2 output (CPU, rayon): `--method raytrace`.
 //! 5. [`output`]     — multi-layer OpenEXR frames, per-frame report, tone-mapped previews, image comparison.
 //!
+//! [`vessel`] moves vertices seen through glass panes and cylinders (Mukai et al.'s vertex
+//! displacement; pure CPU): every wall path of a point and its displaced vertex.
+//!
 //! [`accuracy`] reproduces the thesis's accuracy study (error volumes of its Tables 4.1, 4.2, 4.5)
 //! for the linear and the exact method.
 //!
@@ -59,6 +62,7 @@ pub mod sim;
 pub mod stability;
 pub mod timeline;
 pub mod tools;
+pub mod vessel;
 pub mod water;
 
 /// The version written into every EXR header and report.

@@ -188,10 +188,13 @@ enum Command {
     /// frame times of a scene (default scenes/pool.toml) at 1280x720, and the ray-traced
     /// reference's refracted rays per second and seconds per frame on the same scene and size,
     /// and the refraction stage of a wake (default scenes/hard/wading_wake.toml frames 40-48)
-    /// beside the same frames with ripples off, and the whole `snell render` per written frame
+    /// beside the same frames with ripples off; the whole `snell render` per written frame
     /// of the scene at 1280x720 (`written`: frames 1-8 unwritten, then written with `--layers
     /// comp` and with `all`, alternating over 3 passes; wall-clock and CPU per frame and the
-    /// ratios written / unwritten, targets at most 1.3x for `comp` and 2.5x for `all`).
+    /// ratios written / unwritten, targets at most 1.3x for `comp` and 2.5x for `all`);
+    /// and the vessel displacement (Mukai et al.) of 100,000 vertices through a glass of water
+    /// and an aquarium pane, in vertices per second beside the paper's GPU figures and the
+    /// water's refraction stage on as many vertices.
     Bench {
         /// Print the figures as one JSON object.
         #[arg(long)]
@@ -941,15 +944,22 @@ fn bench(
         wake_frames,
     )?;
     let scrub = snell::preview::bench::scrub_latency(scene_path, SCRUB_FRAMES)?;
+    let vessels = snell::vessel::bench::run(snell::vessel::bench::VERTICES_DEFAULT, 5);
     if json {
         let mut value = serde_json::to_value(&figures).expect("figures serialise");
         value["preview"] = serde_json::to_value(&scrub).expect("figures serialise");
+        value["vessels"] = serde_json::to_value(vessels).expect("figures serialise");
         outln!(
             "{}",
             serde_json::to_string_pretty(&value).expect("figures serialise")
         );
     } else {
-        out!("{}{}", figures.to_text(), scrub.to_text());
+        out!(
+            "{}{}{}",
+            figures.to_text(),
+            scrub.to_text(),
+            vessels.to_text()
+        );
     }
     Ok(())
 }

@@ -251,3 +251,87 @@ fn ripple_physics_keys() {
         "from 100 to 20000 kg/m^3",
     );
 }
+
+#[test]
+fn vessel_kind_missing_or_unknown() {
+    let message = assert_error(
+        "[[vessel]]\nkind = \"bowl\"\n",
+        2,
+        8,
+        "vessel[0].kind",
+        "unknown vessel kind \"bowl\"",
+    );
+    assert!(message.contains("\"cylinder\""), "{message}");
+    assert_error(
+        "name = \"x\"\n[[vessel]]\nglass_index = 1.5\n",
+        2,
+        1,
+        "vessel[0]",
+        "a vessel needs a kind",
+    );
+}
+
+#[test]
+fn vessel_key_of_the_other_kind_and_missing_keys() {
+    let message = assert_error(
+        "[[vessel]]\nkind = \"pane\"\ninner_radius_m = 0.03\n",
+        3,
+        1,
+        "vessel[0].inner_radius_m",
+        "does not apply to kind = \"pane\"",
+    );
+    assert!(message.contains("\"thickness_m\""), "{message}");
+    assert_error(
+        "[[vessel]]\nkind = \"pane\"\nposition = [0.0, 0.3, 1.0]\nnormal = [0.0, 0.0, 1.0]\n",
+        1,
+        1,
+        "vessel[0]",
+        "a pane needs size_m",
+    );
+    assert_error(
+        "[[vessel]]\nkind = \"cylinder\"\nbase = [0.0, 0.0, 0.0]\nouter_radius_m = 0.04\nheight_m = 0.1\n",
+        1,
+        1,
+        "vessel[0]",
+        "a cylinder needs inner_radius_m",
+    );
+}
+
+#[test]
+fn vessel_geometry_that_cannot_be() {
+    assert_error(
+        "[[vessel]]\nkind = \"cylinder\"\nbase = [0.0, 0.0, 0.0]\ninner_radius_m = 0.05\nouter_radius_m = 0.04\nheight_m = 0.1\n",
+        4,
+        18,
+        "vessel[0].inner_radius_m",
+        "the wall has no thickness",
+    );
+    assert_error(
+        "[[vessel]]\nkind = \"pane\"\nposition = [0.0, 0.3, 1.0]\nnormal = [0.0, 0.0, 0.0]\nsize_m = [1.0, 0.5]\n",
+        4,
+        10,
+        "vessel[0].normal",
+        "cannot be the zero vector",
+    );
+    assert_error(
+        "[[vessel]]\nkind = \"pane\"\nposition = [0.0, 0.3, 1.0]\nnormal = [0.0, 1.0, 0.0]\nsize_m = [1.0, 0.5]\n",
+        4,
+        10,
+        "vessel[0].normal",
+        "along its normal",
+    );
+    assert_error(
+        "[[vessel]]\nkind = \"pane\"\nthickness_m = 0.0\n",
+        3,
+        15,
+        "vessel[0].thickness_m",
+        "more than 0 and at most 1 m",
+    );
+    assert_error(
+        "[[vessel]]\nkind = \"cylinder\"\ninside = \"oil\"\n",
+        3,
+        10,
+        "vessel[0].inside",
+        "unknown medium \"oil\"",
+    );
+}

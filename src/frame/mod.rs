@@ -406,6 +406,16 @@ impl RenderJob {
     }
 
     pub fn from_scene(scene: Scene) -> Result<Self, SnellError> {
+        if !scene.vessels.is_empty() {
+            // Issue 18 so far: vessels are parsed, validated, traced by the reference's vessel
+            // code and benchmarked, but the renderer does not draw them yet. Say so rather than
+            // render silently without them.
+            crate::errln!(
+                "warning: the scene's {} [[vessel]] entries are validated but not drawn yet: \
+                 frames show the scene without them",
+                scene.vessels.len()
+            );
+        }
         let (objects, mut textures) = scene.build_objects()?;
         let loaded = characters::load_characters(&scene, &mut textures)?;
         let scene_files = inputs::digest_scene_files(&scene, &loaded)?;
@@ -970,6 +980,21 @@ impl RenderJob {
                 object.mesh.vertex_count(),
                 object.mesh.triangle_count()
             );
+        }
+        if !scene.vessels.is_empty() {
+            let _ = writeln!(
+                text,
+                "vessels    {} (validated; not drawn yet, issue 18)",
+                scene.vessels.len()
+            );
+            for spec in scene.vessels.iter() {
+                let _ = writeln!(
+                    text,
+                    "           - {}: {}",
+                    spec.name,
+                    spec.vessel.describe()
+                );
+            }
         }
         let _ = match &scene.camera {
             crate::scene::CameraSpec::Keys(keys) => {

@@ -33,6 +33,7 @@
 pub mod bvh;
 pub mod surface;
 pub mod texture;
+pub mod vessel;
 
 use std::time::Instant;
 

@@ -22,7 +22,33 @@ pub(crate) struct RawScene {
     pub sun: RawSun,
     pub object: Option<Vec<RawObject>>,
     pub character: Option<Vec<RawCharacter>>,
+    pub vessel: Option<Vec<RawVessel>>,
     pub quality: Option<RawQuality>,
+}
+
+/// `[[vessel]]`: a glass pane or cylinder objects are seen through (`crate::vessel`). Every key of
+/// both kinds is here so that a key of the other kind gets a message of its own.
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawVessel {
+    pub name: Option<String>,
+    /// "pane" or "cylinder" (required; optional here so that its absence gets a message).
+    pub kind: Option<String>,
+    pub glass_index: Option<f64>,
+    /// "air" or "water".
+    pub inside: Option<String>,
+    // A pane's keys.
+    pub position: Option<[f64; 3]>,
+    pub normal: Option<[f64; 3]>,
+    pub up: Option<[f64; 3]>,
+    pub size_m: Option<[f64; 2]>,
+    pub thickness_m: Option<f64>,
+    // A cylinder's keys.
+    pub base: Option<[f64; 3]>,
+    pub axis: Option<[f64; 3]>,
+    pub inner_radius_m: Option<f64>,
+    pub outer_radius_m: Option<f64>,
+    pub height_m: Option<f64>,
 }
 
 /// `[quality]`: how accurate the scene must be, so snell models no more than it needs.

@@ -243,6 +243,17 @@ pub const KEY_RANGES: &[KeyRange] = &[
         "deg",
         "90",
     ),
+    closed("vessel[].glass_index", 1.0, 4.0, "", "1.5"),
+    closed("vessel[].position[]", -W, W, "m", "[0.0, 0.3, 1.0]"),
+    closed("vessel[].normal[]", -W, W, "", "[0.0, 0.0, 1.0]"),
+    closed("vessel[].up[]", -W, W, "", "[0.0, 1.0, 0.0]"),
+    above("vessel[].size_m[]", 0.0, 2.0 * W, "m", "[1.2, 0.6]"),
+    above("vessel[].thickness_m", 0.0, 1.0, "m", "0.01"),
+    closed("vessel[].base[]", -W, W, "m", "[0.0, 0.0, 0.0]"),
+    closed("vessel[].axis[]", -W, W, "", "[0.0, 1.0, 0.0]"),
+    above("vessel[].inner_radius_m", 0.0, W, "m", "0.036"),
+    above("vessel[].outer_radius_m", 0.0, W, "m", "0.04"),
+    above("vessel[].height_m", 0.0, 2.0 * W, "m", "0.12"),
     above("quality.max_error_px", 0.0, 1000.0, "px", "0.5"),
 ];
 

@@ -49,12 +49,24 @@ pub struct Scene {
     pub objects: Arc<[ObjectSpec]>,
     /// Skinned glTF characters (loaded by the frame stage, every frame posed anew).
     pub characters: Arc<[CharacterSpec]>,
+    /// `[[vessel]]` glass panes and cylinders, validated. Not drawn yet: the displacement
+    /// ([`crate::vessel`]) and the reference's tracing ([`crate::reference::vessel`]) exist, the
+    /// renderer's drawing of displaced vertices does not (issue 18).
+    pub vessels: Arc<[VesselSpec]>,
     lighting: Lighting,
     /// `[quality]`: the accuracy the scene asks for (none: render as the file says).
     pub quality: QualitySpec,
     /// What a frame of the scene file needs (characters, textures and the image size are added
     /// by the frame stage), checked against the limits at validation.
     pub resources: resources::Estimate,
+}
+
+/// One `[[vessel]]`, validated.
+#[derive(Clone, Debug, PartialEq)]
+pub struct VesselSpec {
+    /// The file's `name`, or the kind and its index (`pane0`).
+    pub name: String,
+    pub vessel: crate::vessel::Vessel,
 }
 
 /// The scene's camera, validated.

@@ -23,6 +23,7 @@ use crate::timeline::{CameraKey, Timeline};
 
 mod camera;
 mod objects;
+mod vessels;
 mod water;
 
 use camera::{camera, keyframe_time, KeyList};
@@ -111,6 +112,14 @@ pub(crate) fn validate(raw: RawScene, map: &SourceMap<'_>) -> Result<Scene> {
         .map(|(i, c)| character(c, &root.key("character").index(i), i, &timeline, map))
         .collect::<Result<Vec<_>>>()?;
 
+    let vessels = raw
+        .vessel
+        .iter()
+        .flatten()
+        .enumerate()
+        .map(|(i, v)| vessels::vessel(v, &root.key("vessel").index(i), i, map))
+        .collect::<Result<Vec<_>>>()?;
+
     let object_paths: Vec<KeyPath> = match &raw.object {
         Some(_) => (0..objects.len())
             .map(|i| root.key("object").index(i))
@@ -129,6 +138,7 @@ pub(crate) fn validate(raw: RawScene, map: &SourceMap<'_>) -> Result<Scene> {
         water,
         objects: Arc::from(objects),
         characters: Arc::from(characters),
+        vessels: Arc::from(vessels),
         lighting,
         quality,
     })
