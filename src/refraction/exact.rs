@@ -108,6 +108,8 @@ impl FermatProblem<'_> {
 
     /// `grad L` and `Hess L`; None where they are undefined (S on the eye or on the point).
     fn local(&self, xz: DVec2) -> Option<Local> {
+        #[cfg(test)]
+        super::work::count(|w, k| w.evaluations[k] += 1);
         let (x, z) = (xz.x, xz.y);
         let (height, (hx, hz), (hxx, hxz, hzz)) = self.surface.height_derivatives(x, z);
         let s = DVec3::new(x, height, z);
@@ -140,6 +142,28 @@ impl FermatProblem<'_> {
 /// `start_xz`; None when it does not converge (see the module docs for the safeguards and the
 /// tolerance). A point on the surface is its own sight point (0 iterations).
 pub fn solve_sight_point(problem: &FermatProblem, start_xz: DVec2) -> Option<ExactSightPoint> {
+    #[cfg(test)]
+    super::work::count(|w, k| w.solves[k] += 1);
+    #[cfg(test)]
+    let evaluations_before = super::work::evaluations();
+    let solved = solve_uncounted(problem, start_xz);
+    #[cfg(test)]
+    {
+        super::work::end_solve(solved.is_some());
+        let evaluations = (super::work::evaluations() - evaluations_before).min(200) as usize;
+        super::work::count(|w, k| match solved {
+            Some(s) => {
+                w.converged[k] += 1;
+                w.converged_iterations[k][(s.iterations as usize).min(50)] += 1;
+                w.converged_evaluations[k][evaluations] += 1;
+            }
+            None => w.failed_evaluations[k][evaluations] += 1,
+        });
+    }
+    solved
+}
+
+fn solve_uncounted(problem: &FermatProblem, start_xz: DVec2) -> Option<ExactSightPoint> {
     let point = problem.point;
     let depth_m = problem.surface.height(point.x, point.z) - point.y;
     let size_m = (problem.eye - point)
@@ -157,6 +181,11 @@ pub fn solve_sight_point(problem: &FermatProblem, start_xz: DVec2) -> Option<Exa
     let finite = |l: &Local| l.gradient.is_finite() && l.hessian.is_finite();
     let mut xz = start_xz;
     let mut local = problem.local(xz).filter(finite)?;
+    #[cfg(test)]
+    let mut line_searches = super::work::LineSearches {
+        evaluations: 1,
+        ..Default::default()
+    };
     for iteration in 0..=MAX_ITERATIONS {
         let g = local.gradient;
         if g.length() <= gradient_tolerance {
@@ -192,7 +221,13 @@ pub fn solve_sight_point(problem: &FermatProblem, start_xz: DVec2) -> Option<Exa
         let phi = 0.5 * g.length_squared();
         let mut step = 1.0;
         let mut accepted = None;
+        #[cfg(test)]
+        let mut trials = 0;
         for _ in 0..MAX_HALVINGS {
+            #[cfg(test)]
+            {
+                trials += 1;
+            }
             let trial = xz + direction * step;
             if let Some(next) = problem.local(trial).filter(finite) {
                 if 0.5 * next.gradient.length_squared() <= (1.0 - ARMIJO * step) * phi {
@@ -201,6 +236,11 @@ pub fn solve_sight_point(problem: &FermatProblem, start_xz: DVec2) -> Option<Exa
                 }
             }
             step *= 0.5;
+        }
+        #[cfg(test)]
+        {
+            line_searches.iteration(trials, accepted.is_none());
+            super::work::set_line_searches(line_searches);
         }
         let (next_xz, next_local) = accepted?;
         xz = next_xz;
@@ -215,6 +255,8 @@ pub fn solve_sight_point(problem: &FermatProblem, start_xz: DVec2) -> Option<Exa
 /// the surface and S-V below it, within round-off (§6), by [`ExactSurface::path_is_clear`] and
 /// its guarantee (no crest stepped over). `surface` is the problem's surface with its bounds.
 pub fn path_is_clear(surface: &ExactSurface, problem: &FermatProblem, sight_point: DVec3) -> bool {
+    #[cfg(test)]
+    super::work::count(|w, k| w.path_checks[k] += 1);
     let s = sight_point;
     let (hx, hz) = problem.surface.gradient(s.x, s.z);
     let up = DVec3::new(-hx, 1.0, -hz);
@@ -295,6 +337,8 @@ pub fn exact_images(
         }
     };
     for image in linear {
+        #[cfg(test)]
+        let _source = super::work::source(super::work::Source::LinearImage);
         let start = DVec2::new(image.sight_point.x as f64, image.sight_point.z as f64);
         let exact = |sight_point| ExactImage {
             facet: image.facet,
@@ -310,6 +354,8 @@ pub fn exact_images(
         }
         let mut reached_kept = false;
         let mut found = None;
+        #[cfg(test)]
+        let _source = super::work::source(super::work::Source::Retry);
         for k in 0..RETRY_SEEDS {
             // Evenly around the circle, turned off the grid's axes.
             let angle = 0.3 + std::f64::consts::TAU * k as f64 / RETRY_SEEDS as f64;

@@ -189,6 +189,10 @@ impl Subdivider<'_> {
             return None;
         }
         let (sight_a, sight_b) = (a.sight_xz?, b.sight_xz?);
+        #[cfg(test)]
+        let _source = super::work::source(super::work::Source::Midpoint);
+        #[cfg(test)]
+        super::work::count(|w, _| w.edge_tests += 1);
         let position = (0.5 * (a.position.as_dvec3() + b.position.as_dvec3())).as_vec3();
         let (virtual_position, water_path_m, sight_xz) =
             self.exact_vertex_unchecked(position, 0.5 * (sight_a + sight_b))?;
@@ -197,6 +201,8 @@ impl Subdivider<'_> {
         let sight_point = DVec3::new(sight_xz.x, 0.0, sight_xz.y);
         let keep =
             stray_px > self.settings.tolerance_px && self.path_is_clear(position, sight_point);
+        #[cfg(test)]
+        super::work::count(|w, _| w.edge_splits += u64::from(keep));
         keep.then(|| SubdivisionVertex {
             position,
             normal: (a.normal + b.normal).normalize_or(a.normal),
