@@ -274,9 +274,10 @@ impl Subdivider<'_> {
     /// one is behind the eye.
     pub fn stray_px(&self, a: Vec3, b: Vec3, m: Vec3) -> Option<f32> {
         let (width, height) = self.image_size;
-        let pa = self.camera.pixel_of(a, width, height)?;
-        let pb = self.camera.pixel_of(b, width, height)?;
-        let pm = self.camera.pixel_of(m, width, height)?;
+        let pixels = self.camera.pixels(width, height);
+        let pa = pixels.pixel_of(a)?;
+        let pb = pixels.pixel_of(b)?;
+        let pm = pixels.pixel_of(m)?;
         Some(distance_to_segment(pm, pa, pb))
     }
 }
