@@ -12,7 +12,9 @@
 
 use glam::{DVec2, DVec3, Vec2, Vec3};
 
-use super::exact::{path_is_clear, solve_sight_point, FermatProblem};
+use super::exact::{
+    path_is_clear, solve_sight_point_within, FermatProblem, MIDPOINT_MAX_EVALUATIONS,
+};
 use super::flat::virtual_vertex;
 use super::search::RefractionField;
 use super::split::{WaterVolume, SURFACE_TOLERANCE_M};
@@ -246,7 +248,7 @@ impl Subdivider<'_> {
             return None;
         }
         let problem = self.problem(point);
-        let s = solve_sight_point(&problem, start_xz)?.sight_point;
+        let s = solve_sight_point_within(&problem, start_xz, MIDPOINT_MAX_EVALUATIONS)?.sight_point;
         let virtual_position =
             virtual_vertex(problem.eye, s, point, problem.n_above, problem.n_below);
         Some((
