@@ -84,6 +84,8 @@ const ARMIJO: f64 = 1e-4;
 pub const MAX_HALVINGS: u32 = 12;
 /// `grad L` and `Hess L` at one (x, z), with the distances involved.
 struct Local {
+    /// The surface point at (x, z).
+    surface_point: DVec3,
     gradient: DVec2,
     hessian: DMat2,
     water_path_m: f64,
@@ -131,6 +133,7 @@ impl FermatProblem<'_> {
         let xz_ = s_x.dot(m_z) + a.y * hxz;
         let zz = s_z.dot(m_z) + a.y * hzz;
         Some(Local {
+            surface_point: s,
             gradient: DVec2::new(a.dot(s_x), a.dot(s_z)),
             hessian: DMat2::from_cols(DVec2::new(xx, xz_), DVec2::new(xz_, zz)),
             water_path_m: water_m,
@@ -142,22 +145,37 @@ impl FermatProblem<'_> {
 /// `start_xz`; None when it does not converge (see the module docs for the safeguards and the
 /// tolerance). A point on the surface is its own sight point (0 iterations).
 pub fn solve_sight_point(problem: &FermatProblem, start_xz: DVec2) -> Option<ExactSightPoint> {
-    solve_sight_point_within(problem, start_xz, u32::MAX)
+    let limits = SolveLimits {
+        max_evaluations: u32::MAX,
+        enough: None,
+    };
+    solve_sight_point_within(problem, start_xz, &limits)
 }
 
-/// [`solve_sight_point`] giving up (None) once it would need more than `max_evaluations`
-/// evaluations of `grad L` and `Hess L` (the start's included): for solves whose failure is
-/// cheap to accept, as a subdivision's midpoint ([`MIDPOINT_MAX_EVALUATIONS`]).
+/// What a caller can do without: the solve's answer past a cost, or once it is close enough.
+pub struct SolveLimits<'a> {
+    /// Give up (None) once another evaluation of `grad L` and `Hess L` would make more than this
+    /// (the start's included): for solves whose failure is cheap to accept, as a subdivision's
+    /// midpoint ([`MIDPOINT_MAX_EVALUATIONS`]).
+    pub max_evaluations: u32,
+    /// Asked at the iterates where Newton converges quadratically (the step before was a full
+    /// Newton step and this one is at most a quarter of it), with the surface point there and a
+    /// bound on its horizontal distance from the solution (twice the Newton step): true stops the
+    /// solve (None), the caller knowing all it needs of the answer.
+    pub enough: Option<&'a dyn Fn(DVec3, f64) -> bool>,
+}
+
+/// [`solve_sight_point`] within `limits`.
 pub fn solve_sight_point_within(
     problem: &FermatProblem,
     start_xz: DVec2,
-    max_evaluations: u32,
+    limits: &SolveLimits,
 ) -> Option<ExactSightPoint> {
     #[cfg(test)]
     super::work::count(|w, k| w.solves[k] += 1);
     #[cfg(test)]
     let evaluations_before = super::work::evaluations();
-    let solved = solve_uncounted(problem, start_xz, max_evaluations);
+    let solved = solve_uncounted(problem, start_xz, limits);
     #[cfg(test)]
     {
         super::work::end_solve(solved.is_some());
@@ -177,7 +195,7 @@ pub fn solve_sight_point_within(
 fn solve_uncounted(
     problem: &FermatProblem,
     start_xz: DVec2,
-    max_evaluations: u32,
+    limits: &SolveLimits,
 ) -> Option<ExactSightPoint> {
     let point = problem.point;
     let depth_m = problem.surface.height(point.x, point.z) - point.y;
@@ -197,6 +215,8 @@ fn solve_uncounted(
     let mut xz = start_xz;
     let mut local = problem.local(xz).filter(finite)?;
     let mut evaluations = 1;
+    // The length of the last iteration's Newton step when it was taken whole.
+    let mut full_newton_step = None;
     #[cfg(test)]
     let mut line_searches = super::work::LineSearches {
         evaluations: 1,
@@ -230,6 +250,13 @@ fn solve_uncounted(
                 iterations: iteration + 1,
             });
         }
+        if let (Some(enough), Some(previous)) = (limits.enough, full_newton_step) {
+            let length = direction.length();
+            if newton && length <= 0.25 * previous && enough(local.surface_point, 2.0 * length) {
+                return None;
+            }
+        }
+        let newton_length = direction.length();
         let cap_m = local.water_path_m;
         if direction.length() > cap_m {
             direction *= cap_m / direction.length();
@@ -244,7 +271,7 @@ fn solve_uncounted(
             {
                 trials += 1;
             }
-            if evaluations >= max_evaluations {
+            if evaluations >= limits.max_evaluations {
                 return None;
             }
             evaluations += 1;
@@ -263,6 +290,7 @@ fn solve_uncounted(
             super::work::set_line_searches(line_searches);
         }
         let (next_xz, next_local) = accepted?;
+        full_newton_step = (newton && step == 1.0 && newton_length <= cap_m).then_some(newton_length);
         xz = next_xz;
         local = next_local;
     }

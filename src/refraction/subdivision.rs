@@ -13,7 +13,7 @@
 use glam::{DVec2, DVec3, Vec2, Vec3};
 
 use super::exact::{
-    path_is_clear, solve_sight_point_within, FermatProblem, MIDPOINT_MAX_EVALUATIONS,
+    path_is_clear, solve_sight_point_within, FermatProblem, SolveLimits, MIDPOINT_MAX_EVALUATIONS,
 };
 use super::flat::virtual_vertex;
 use super::search::RefractionField;
@@ -202,8 +202,39 @@ impl Subdivider<'_> {
         #[cfg(test)]
         super::work::count(|w, _| w.edge_tests += 1);
         let position = (0.5 * (a.position.as_dvec3() + b.position.as_dvec3())).as_vec3();
-        let (virtual_position, water_path_m, sight_xz) =
-            self.exact_vertex_unchecked(position, 0.5 * (sight_a + sight_b))?;
+        let (width, height) = self.image_size;
+        let pixels = self.camera.pixels(width, height);
+        let (pa, pb) = (
+            pixels.pixel_of(a.virtual_position)?,
+            pixels.pixel_of(b.virtual_position)?,
+        );
+        // The solve may stop once the midpoint's image is certainly within the tolerance: the
+        // edge stays whole, as the converged solve would say. The virtual vertex is on the sight
+        // ray through the sight point, so their pixels agree (to f32 rounding: the 0.01 px). A
+        // sight point within `error_m` horizontally of the solution is within `error_m (1 + G)`
+        // of it, which moves its pixel by at most `f / depth / cos(off-axis angle)` times that
+        // (f the focal length in pixels: the largest singular value of the projection's
+        // derivative there).
+        let focal_px =
+            0.5 * height as f64 / (0.5 * self.camera.fov_y_deg.to_radians() as f64).tan();
+        let centre = glam::DVec2::new(0.5 * width as f64, 0.5 * height as f64);
+        let slope = self.field.surface.slope_bound;
+        let tolerance_px = self.settings.tolerance_px as f64;
+        let within_tolerance = |s: DVec3, error_m: f64| {
+            let depth_m = self.camera.view_depth(s.as_vec3()) as f64;
+            let Some(pm) = pixels.pixel_of(s.as_vec3()) else {
+                return false;
+            };
+            let off_axis = (pm.as_dvec2() - centre) / focal_px;
+            let stretch = (1.0 + off_axis.length_squared()).sqrt();
+            let margin_px = focal_px / depth_m * stretch * error_m * (1.0 + slope) + 0.01;
+            depth_m > 1e-3 && distance_to_segment(pm, pa, pb) as f64 + margin_px < tolerance_px
+        };
+        let (virtual_position, water_path_m, sight_xz) = self.exact_vertex_unchecked(
+            position,
+            0.5 * (sight_a + sight_b),
+            Some(&within_tolerance),
+        )?;
         let stray_px = self.stray_px(a.virtual_position, b.virtual_position, virtual_position)?;
         // The path check only matters for a vertex that will exist: most edges stay whole.
         let sight_point = DVec3::new(sight_xz.x, 0.0, sight_xz.y);
@@ -227,16 +258,18 @@ impl Subdivider<'_> {
     /// `start_xz`, with its water path and sight point; None when the point is not under the
     /// water, the solve fails or the path is blocked.
     pub fn exact_vertex(&self, position: Vec3, start_xz: DVec2) -> Option<(Vec3, f32, DVec2)> {
-        let found = self.exact_vertex_unchecked(position, start_xz)?;
+        let found = self.exact_vertex_unchecked(position, start_xz, None)?;
         let sight_point = DVec3::new(found.2.x, 0.0, found.2.y);
         self.path_is_clear(position, sight_point).then_some(found)
     }
 
-    /// [`Self::exact_vertex`] without the path check.
+    /// [`Self::exact_vertex`] without the path check, the solve within the midpoints' limits
+    /// ([`MIDPOINT_MAX_EVALUATIONS`], and `enough`: [`SolveLimits::enough`]).
     fn exact_vertex_unchecked(
         &self,
         position: Vec3,
         start_xz: DVec2,
+        enough: Option<&dyn Fn(DVec3, f64) -> bool>,
     ) -> Option<(Vec3, f32, DVec2)> {
         let field = self.field;
         let point = position.as_dvec3();
@@ -248,7 +281,11 @@ impl Subdivider<'_> {
             return None;
         }
         let problem = self.problem(point);
-        let s = solve_sight_point_within(&problem, start_xz, MIDPOINT_MAX_EVALUATIONS)?.sight_point;
+        let limits = SolveLimits {
+            max_evaluations: MIDPOINT_MAX_EVALUATIONS,
+            enough,
+        };
+        let s = solve_sight_point_within(&problem, start_xz, &limits)?.sight_point;
         let virtual_position =
             virtual_vertex(problem.eye, s, point, problem.n_above, problem.n_below);
         Some((
