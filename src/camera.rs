@@ -40,6 +40,28 @@ pub fn up_for_view(view: Vec3) -> Vec3 {
     }
 }
 
+/// World points to pixel coordinates for one camera and image size ([`Camera::pixels`]).
+#[derive(Clone, Copy, Debug)]
+pub struct Pixels {
+    clip_from_world: Mat4,
+    size: Vec2,
+}
+
+impl Pixels {
+    /// [`Camera::pixel_of`].
+    pub fn pixel_of(&self, point_in_world: Vec3) -> Option<Vec2> {
+        let clip = self.clip_from_world * point_in_world.extend(1.0);
+        if clip.w <= 1e-6 {
+            return None;
+        }
+        let ndc = clip.xy() / clip.w;
+        Some(Vec2::new(
+            (ndc.x * 0.5 + 0.5) * self.size.x,
+            (0.5 - ndc.y * 0.5) * self.size.y,
+        ))
+    }
+}
+
 impl Camera {
     /// Unit view direction, from the eye toward the target: depths are measured along it. A
     /// target on the eye looks along +z, as [`Camera::view_from_world`] does.
@@ -102,15 +124,15 @@ impl Camera {
     /// Pixel coordinates (x right, y down, pixel centres at +0.5) of a world point, or `None`
     /// when it is behind the eye.
     pub fn pixel_of(&self, point_in_world: Vec3, width: u32, height: u32) -> Option<Vec2> {
-        let clip = self.clip_from_world(width, height) * point_in_world.extend(1.0);
-        if clip.w <= 1e-6 {
-            return None;
+        self.pixels(width, height).pixel_of(point_in_world)
+    }
+
+    /// [`Self::pixel_of`] for many points of one image: the projection built once.
+    pub fn pixels(&self, width: u32, height: u32) -> Pixels {
+        Pixels {
+            clip_from_world: self.clip_from_world(width, height),
+            size: Vec2::new(width as f32, height as f32),
         }
-        let ndc = clip.xy() / clip.w;
-        Some(Vec2::new(
-            (ndc.x * 0.5 + 0.5) * width as f32,
-            (0.5 - ndc.y * 0.5) * height as f32,
-        ))
     }
 
     /// Unit direction of the sight ray through pixel coordinates `pixel` (same convention as `pixel_of`).

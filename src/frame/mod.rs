@@ -11,6 +11,8 @@ pub mod limits;
 mod queue;
 pub mod resume;
 pub mod traced;
+#[cfg(test)]
+mod wake_tuning;
 mod writer;
 
 use std::collections::BTreeMap;

@@ -84,6 +84,8 @@ const ARMIJO: f64 = 1e-4;
 pub const MAX_HALVINGS: u32 = 12;
 /// `grad L` and `Hess L` at one (x, z), with the distances involved.
 struct Local {
+    /// The surface point at (x, z).
+    surface_point: DVec3,
     gradient: DVec2,
     hessian: DMat2,
     water_path_m: f64,
@@ -108,6 +110,8 @@ impl FermatProblem<'_> {
 
     /// `grad L` and `Hess L`; None where they are undefined (S on the eye or on the point).
     fn local(&self, xz: DVec2) -> Option<Local> {
+        #[cfg(test)]
+        super::work::count(|w, k| w.evaluations[k] += 1);
         let (x, z) = (xz.x, xz.y);
         let (height, (hx, hz), (hxx, hxz, hzz)) = self.surface.height_derivatives(x, z);
         let s = DVec3::new(x, height, z);
@@ -129,6 +133,7 @@ impl FermatProblem<'_> {
         let xz_ = s_x.dot(m_z) + a.y * hxz;
         let zz = s_z.dot(m_z) + a.y * hzz;
         Some(Local {
+            surface_point: s,
             gradient: DVec2::new(a.dot(s_x), a.dot(s_z)),
             hessian: DMat2::from_cols(DVec2::new(xx, xz_), DVec2::new(xz_, zz)),
             water_path_m: water_m,
@@ -140,6 +145,58 @@ impl FermatProblem<'_> {
 /// `start_xz`; None when it does not converge (see the module docs for the safeguards and the
 /// tolerance). A point on the surface is its own sight point (0 iterations).
 pub fn solve_sight_point(problem: &FermatProblem, start_xz: DVec2) -> Option<ExactSightPoint> {
+    let limits = SolveLimits {
+        max_evaluations: u32::MAX,
+        enough: None,
+    };
+    solve_sight_point_within(problem, start_xz, &limits)
+}
+
+/// What a caller can do without: the solve's answer past a cost, or once it is close enough.
+pub struct SolveLimits<'a> {
+    /// Give up (None) once another evaluation of `grad L` and `Hess L` would make more than this
+    /// (the start's included): for solves whose failure is cheap to accept, as a subdivision's
+    /// midpoint ([`MIDPOINT_MAX_EVALUATIONS`]).
+    pub max_evaluations: u32,
+    /// Asked at the iterates where Newton converges quadratically (the step before was a full
+    /// Newton step and this one is at most a quarter of it), with the surface point there and a
+    /// bound on its horizontal distance from the solution (twice the Newton step): true stops the
+    /// solve (None), the caller knowing all it needs of the answer.
+    pub enough: Option<&'a dyn Fn(DVec3, f64) -> bool>,
+}
+
+/// [`solve_sight_point`] within `limits`.
+pub fn solve_sight_point_within(
+    problem: &FermatProblem,
+    start_xz: DVec2,
+    limits: &SolveLimits,
+) -> Option<ExactSightPoint> {
+    #[cfg(test)]
+    super::work::count(|w, k| w.solves[k] += 1);
+    #[cfg(test)]
+    let evaluations_before = super::work::evaluations();
+    let solved = solve_uncounted(problem, start_xz, limits);
+    #[cfg(test)]
+    {
+        super::work::end_solve(solved.is_some());
+        let evaluations = (super::work::evaluations() - evaluations_before).min(200) as usize;
+        super::work::count(|w, k| match solved {
+            Some(s) => {
+                w.converged[k] += 1;
+                w.converged_iterations[k][(s.iterations as usize).min(50)] += 1;
+                w.converged_evaluations[k][evaluations] += 1;
+            }
+            None => w.failed_evaluations[k][evaluations] += 1,
+        });
+    }
+    solved
+}
+
+fn solve_uncounted(
+    problem: &FermatProblem,
+    start_xz: DVec2,
+    limits: &SolveLimits,
+) -> Option<ExactSightPoint> {
     let point = problem.point;
     let depth_m = problem.surface.height(point.x, point.z) - point.y;
     let size_m = (problem.eye - point)
@@ -157,6 +214,14 @@ pub fn solve_sight_point(problem: &FermatProblem, start_xz: DVec2) -> Option<Exa
     let finite = |l: &Local| l.gradient.is_finite() && l.hessian.is_finite();
     let mut xz = start_xz;
     let mut local = problem.local(xz).filter(finite)?;
+    let mut evaluations = 1;
+    // The length of the last iteration's Newton step when it was taken whole.
+    let mut full_newton_step = None;
+    #[cfg(test)]
+    let mut line_searches = super::work::LineSearches {
+        evaluations: 1,
+        ..Default::default()
+    };
     for iteration in 0..=MAX_ITERATIONS {
         let g = local.gradient;
         if g.length() <= gradient_tolerance {
@@ -185,6 +250,13 @@ pub fn solve_sight_point(problem: &FermatProblem, start_xz: DVec2) -> Option<Exa
                 iterations: iteration + 1,
             });
         }
+        if let (Some(enough), Some(previous)) = (limits.enough, full_newton_step) {
+            let length = direction.length();
+            if newton && length <= 0.25 * previous && enough(local.surface_point, 2.0 * length) {
+                return None;
+            }
+        }
+        let newton_length = direction.length();
         let cap_m = local.water_path_m;
         if direction.length() > cap_m {
             direction *= cap_m / direction.length();
@@ -192,7 +264,17 @@ pub fn solve_sight_point(problem: &FermatProblem, start_xz: DVec2) -> Option<Exa
         let phi = 0.5 * g.length_squared();
         let mut step = 1.0;
         let mut accepted = None;
+        #[cfg(test)]
+        let mut trials = 0;
         for _ in 0..MAX_HALVINGS {
+            #[cfg(test)]
+            {
+                trials += 1;
+            }
+            if evaluations >= limits.max_evaluations {
+                return None;
+            }
+            evaluations += 1;
             let trial = xz + direction * step;
             if let Some(next) = problem.local(trial).filter(finite) {
                 if 0.5 * next.gradient.length_squared() <= (1.0 - ARMIJO * step) * phi {
@@ -202,7 +284,13 @@ pub fn solve_sight_point(problem: &FermatProblem, start_xz: DVec2) -> Option<Exa
             }
             step *= 0.5;
         }
+        #[cfg(test)]
+        {
+            line_searches.iteration(trials, accepted.is_none());
+            super::work::set_line_searches(line_searches);
+        }
         let (next_xz, next_local) = accepted?;
+        full_newton_step = (newton && step == 1.0 && newton_length <= cap_m).then_some(newton_length);
         xz = next_xz;
         local = next_local;
     }
@@ -215,6 +303,8 @@ pub fn solve_sight_point(problem: &FermatProblem, start_xz: DVec2) -> Option<Exa
 /// the surface and S-V below it, within round-off (§6), by [`ExactSurface::path_is_clear`] and
 /// its guarantee (no crest stepped over). `surface` is the problem's surface with its bounds.
 pub fn path_is_clear(surface: &ExactSurface, problem: &FermatProblem, sight_point: DVec3) -> bool {
+    #[cfg(test)]
+    super::work::count(|w, k| w.path_checks[k] += 1);
     let s = sight_point;
     let (hx, hz) = problem.surface.gradient(s.x, s.z);
     let up = DVec3::new(-hx, 1.0, -hz);
@@ -243,6 +333,16 @@ pub struct ExactImage {
     /// Newton failed; `sight_point` is the linear cell's.
     pub newton_fallback: bool,
 }
+
+/// Evaluations a subdivision's midpoint solve may make ([`solve_sight_point_within`]; the
+/// subdivision leaves an edge whose midpoint solve fails whole). Measured on
+/// `scenes/hard/wading_wake.toml` frame 44 at 1280x720 (`frame::wake_tuning`): of 306,490
+/// midpoint solves, 31,843 (10.4 %) fail, after 14 evaluations at least and 73 on average (the
+/// line search's trials past a fold, module docs), most of the frame's evaluations; converged
+/// ones take 6.3 on average, 22 at the 99th percentile, more than 32 in 0.36 % of them. So past
+/// 32 evaluations a midpoint solve converges about once in 20; the budget cuts the frame's
+/// midpoint evaluations from 4.1 M to 2.7 M.
+pub const MIDPOINT_MAX_EVALUATIONS: u32 = 32;
 
 /// Exact images closer than this times the path length `|S - E| + |V - S|` are one: two solves
 /// of the same stationary point agree to ~1e-12 of it; distinct images of a convergence zone are
@@ -295,6 +395,8 @@ pub fn exact_images(
         }
     };
     for image in linear {
+        #[cfg(test)]
+        let _source = super::work::source(super::work::Source::LinearImage);
         let start = DVec2::new(image.sight_point.x as f64, image.sight_point.z as f64);
         let exact = |sight_point| ExactImage {
             facet: image.facet,
@@ -310,6 +412,8 @@ pub fn exact_images(
         }
         let mut reached_kept = false;
         let mut found = None;
+        #[cfg(test)]
+        let _source = super::work::source(super::work::Source::Retry);
         for k in 0..RETRY_SEEDS {
             // Evenly around the circle, turned off the grid's axes.
             let angle = 0.3 + std::f64::consts::TAU * k as f64 / RETRY_SEEDS as f64;

@@ -19,3 +19,5 @@ pub mod split;
 pub mod subdivision;
 pub mod surface;
 pub mod virtual_geometry;
+#[cfg(test)]
+pub(crate) mod work;

@@ -458,6 +458,8 @@ impl ExactSurface<'_> {
             return true;
         };
         let clearance = |s: f64| {
+            #[cfg(test)]
+            super::work::count(|w, k| w.walk_evaluations[k] += 1);
             let p = from + d * s;
             let (h, (gx, gz)) = self.height_field.height_and_gradient(p.x, p.z);
             (

@@ -160,39 +160,61 @@ fn catmull_rom_second(t: f64) -> [f64; 4] {
 }
 
 impl RippleField<'_> {
-    /// Height, gradient and Hessian at (x, z) in one pass over the 4 x 4 nodes. The bicubic is
-    /// C1: the Hessian is that of the cell containing (x, z) (it jumps across node lines).
-    fn sample_derivatives(&self, x: f64, z: f64) -> (f64, (f64, f64), (f64, f64, f64)) {
+    /// The cell of the grid holding (x, z): the 4 x 4 nodes its bicubic weighs (indices into the
+    /// row-major heights, mirrored at the walls: x offsets and z row starts) and the fractions
+    /// within the cell; None outside the grid (the field is zero there).
+    #[inline(always)]
+    fn cell(&self, x: f64, z: f64) -> Option<([usize; 4], [usize; 4], f64, f64)> {
         let s = &self.state.settings;
         let (nx, nz) = (s.nodes_x as i64, s.nodes_z as i64);
         let gx = (x - s.min_x) / s.spacing_m;
         let gz = (z - s.min_z) / s.spacing_m;
         if !(gx >= 0.0 && gz >= 0.0 && gx <= (nx - 1) as f64 && gz <= (nz - 1) as f64) {
-            return (0.0, (0.0, 0.0), (0.0, 0.0, 0.0));
+            return None;
         }
+        // Truncation is the floor here: both are >= 0.
         let (cx, cz) = (
-            (gx.floor() as i64).min(nx - 2).max(0),
-            (gz.floor() as i64).min(nz - 2).max(0),
+            (gx as i64).min(nx - 2).max(0),
+            (gz as i64).min(nz - 2).max(0),
         );
-        let (tx, tz) = (gx - cx as f64, gz - cz as f64);
+        let columns = std::array::from_fn(|i| mirrored(cx - 1 + i as i64, nx));
+        let rows = std::array::from_fn(|j| mirrored(cz - 1 + j as i64, nz) * nx as usize);
+        Some((columns, rows, gx - cx as f64, gz - cz as f64))
+    }
+
+    /// The 4 nodes of row `row` (a row start) at `columns`.
+    #[inline(always)]
+    fn row(&self, row: usize, columns: &[usize; 4]) -> [f64; 4] {
+        let heights = &self.state.height_m[row..];
+        columns.map(|c| heights[c] as f64)
+    }
+
+    /// Height, gradient and Hessian at (x, z) in one pass over the 4 x 4 nodes: per row the x
+    /// weights' sums, then the z weights over the rows. The bicubic is C1: the Hessian is that of
+    /// the cell containing (x, z) (it jumps across node lines).
+    fn sample_derivatives(&self, x: f64, z: f64) -> (f64, (f64, f64), (f64, f64, f64)) {
+        let Some((columns, rows, tx, tz)) = self.cell(x, z) else {
+            return (0.0, (0.0, 0.0), (0.0, 0.0, 0.0));
+        };
         let ((wx, dwx), ddwx) = (catmull_rom(tx), catmull_rom_second(tx));
         let ((wz, dwz), ddwz) = (catmull_rom(tz), catmull_rom_second(tz));
         let mut sums = [0.0; 6];
         for j in 0..4 {
-            let iz = mirrored(cz - 1 + j as i64, nz);
-            for i in 0..4 {
-                let ix = mirrored(cx - 1 + i as i64, nx);
-                let u = self.state.height_m[iz * nx as usize + ix] as f64;
-                sums[0] += wx[i] * wz[j] * u;
-                sums[1] += dwx[i] * wz[j] * u;
-                sums[2] += wx[i] * dwz[j] * u;
-                sums[3] += ddwx[i] * wz[j] * u;
-                sums[4] += dwx[i] * dwz[j] * u;
-                sums[5] += wx[i] * ddwz[j] * u;
-            }
+            let u = self.row(rows[j], &columns);
+            let dot = |w: &[f64; 4]| w[0] * u[0] + w[1] * u[1] + w[2] * u[2] + w[3] * u[3];
+            let (value, slope, curvature) = (dot(&wx), dot(&dwx), dot(&ddwx));
+            sums[0] += wz[j] * value;
+            sums[1] += wz[j] * slope;
+            sums[2] += dwz[j] * value;
+            sums[3] += wz[j] * curvature;
+            sums[4] += dwz[j] * slope;
+            sums[5] += ddwz[j] * value;
         }
         // Divided as `sample` divides, so the two agree to the bit.
-        let (d, d2) = (s.spacing_m, s.spacing_m * s.spacing_m);
+        let (d, d2) = (
+            self.state.settings.spacing_m,
+            self.state.settings.spacing_m * self.state.settings.spacing_m,
+        );
         (
             sums[0],
             (sums[1] / d, sums[2] / d),
@@ -200,33 +222,24 @@ impl RippleField<'_> {
         )
     }
 
-    /// (height, d/dx, d/dz) at (x, z).
+    /// (height, d/dx, d/dz) at (x, z), summed as [`Self::sample_derivatives`] sums them.
     fn sample(&self, x: f64, z: f64) -> (f64, f64, f64) {
-        let s = &self.state.settings;
-        let (nx, nz) = (s.nodes_x as i64, s.nodes_z as i64);
-        let gx = (x - s.min_x) / s.spacing_m;
-        let gz = (z - s.min_z) / s.spacing_m;
-        if !(gx >= 0.0 && gz >= 0.0 && gx <= (nx - 1) as f64 && gz <= (nz - 1) as f64) {
+        let Some((columns, rows, tx, tz)) = self.cell(x, z) else {
             return (0.0, 0.0, 0.0);
-        }
-        let (cx, cz) = (
-            (gx.floor() as i64).min(nx - 2).max(0),
-            (gz.floor() as i64).min(nz - 2).max(0),
-        );
-        let (wx, dwx) = catmull_rom(gx - cx as f64);
-        let (wz, dwz) = catmull_rom(gz - cz as f64);
+        };
+        let (wx, dwx) = catmull_rom(tx);
+        let (wz, dwz) = catmull_rom(tz);
         let (mut height, mut ddx, mut ddz) = (0.0, 0.0, 0.0);
-        for (j, (wzj, dwzj)) in wz.iter().zip(&dwz).enumerate() {
-            let iz = mirrored(cz - 1 + j as i64, nz);
-            for (i, (wxi, dwxi)) in wx.iter().zip(&dwx).enumerate() {
-                let ix = mirrored(cx - 1 + i as i64, nx);
-                let u = self.state.height_m[iz * nx as usize + ix] as f64;
-                height += wxi * wzj * u;
-                ddx += dwxi * wzj * u;
-                ddz += wxi * dwzj * u;
-            }
+        for j in 0..4 {
+            let u = self.row(rows[j], &columns);
+            let dot = |w: &[f64; 4]| w[0] * u[0] + w[1] * u[1] + w[2] * u[2] + w[3] * u[3];
+            let (value, slope) = (dot(&wx), dot(&dwx));
+            height += wz[j] * value;
+            ddx += wz[j] * slope;
+            ddz += dwz[j] * value;
         }
-        (height, ddx / s.spacing_m, ddz / s.spacing_m)
+        let d = self.state.settings.spacing_m;
+        (height, ddx / d, ddz / d)
     }
 }
 

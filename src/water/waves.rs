@@ -197,7 +197,12 @@ pub fn sin_cos(x: f64) -> (f64, f64) {
     if x.is_nan() || x.abs() >= 823_549.6 {
         return x.sin_cos();
     }
-    let n = (x * std::f64::consts::FRAC_2_PI).round();
+    // Round to the nearest integer (ties to even) by adding and subtracting 1.5 * 2^52, exact
+    // for |y| < 2^51 (here |y| < 2^19): two additions, where `f64::round` is a library call on
+    // baseline x86-64 (no SSE4.1), a fifth of this function's time. A tie gives r = +-pi/4
+    // either way, inside the kernels' range.
+    const ROUNDING_SHIFT: f64 = 6_755_399_441_055_744.0;
+    let n = (x * std::f64::consts::FRAC_2_PI + ROUNDING_SHIFT) - ROUNDING_SHIFT;
     let r = (x - n * PIO2_HI) - n * PIO2_LO;
     let z = r * r;
     let sin = r + r * z * (S[0] + z * (S[1] + z * (S[2] + z * (S[3] + z * (S[4] + z * S[5])))));
