@@ -408,8 +408,13 @@ fn equivalent_cameras(dir: &Path) -> (PathBuf, PathBuf) {
 /// rounding (the eye is the same float; forward and up differ by ~1e-7), so the rendered frames
 /// agree except where a pixel centre lies within ~1e-3 px of an edge. Allowed: at most 3 of the
 /// 14,400 pixels of a 160x90 frame differ by more than 1e-3 in any beauty channel, and the mean
-/// difference is below 1e-5. Measured (lavapipe): 0 pixels above 1e-3 in both frames, mean
-/// differences 2.3e-7 (frame 1) and 1.6e-7 (frame 3); `-- --nocapture` prints them.
+/// difference is below 5e-5. Measured (lavapipe): 0 pixels above 1e-3 in both frames. The mean
+/// bound follows the renderer's own f32 noise: with the hardware's interpolation the mean
+/// differences were 2.3e-7 (frame 1) and 1.6e-7 (frame 3), bound 1e-5; since the triangle draws
+/// interpolate from the eye ray meeting the triangle's plane in the fragment stage (strips, issue
+/// 19), a ~1e-7 change of forward and up moves that f32 intersection by more on grazing far water:
+/// mean 1.24e-5, largest 6.2e-4, still 0 pixels above 1e-3 (a precision cost of the pulled draws,
+/// listed in the README's Status). `-- --nocapture` prints them.
 #[test]
 fn a_gltf_camera_renders_as_the_equivalent_keyframes() {
     let dir = tempfile::tempdir().unwrap();
@@ -447,7 +452,7 @@ fn a_gltf_camera_renders_as_the_equivalent_keyframes() {
         }
         let mean = sum / a.beauty_rgba.len() as f64;
         assert!(
-            differing <= 3 && mean < 1e-5,
+            differing <= 3 && mean < 5e-5,
             "frame {frame}: {differing} pixels differ by more than 1e-3, mean difference {mean:e}"
         );
         eprintln!("frame {frame}: {differing} pixels differ by more than 1e-3, mean {mean:e}");
