@@ -290,7 +290,8 @@ fn solve_uncounted(
             super::work::set_line_searches(line_searches);
         }
         let (next_xz, next_local) = accepted?;
-        full_newton_step = (newton && step == 1.0 && newton_length <= cap_m).then_some(newton_length);
+        full_newton_step =
+            (newton && step == 1.0 && newton_length <= cap_m).then_some(newton_length);
         xz = next_xz;
         local = next_local;
     }

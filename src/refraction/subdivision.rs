@@ -255,16 +255,9 @@ impl Subdivider<'_> {
     }
 
     /// The exact virtual vertex of a point strictly under the water, Newton started at
-    /// `start_xz`, with its water path and sight point; None when the point is not under the
-    /// water, the solve fails or the path is blocked.
-    pub fn exact_vertex(&self, position: Vec3, start_xz: DVec2) -> Option<(Vec3, f32, DVec2)> {
-        let found = self.exact_vertex_unchecked(position, start_xz, None)?;
-        let sight_point = DVec3::new(found.2.x, 0.0, found.2.y);
-        self.path_is_clear(position, sight_point).then_some(found)
-    }
-
-    /// [`Self::exact_vertex`] without the path check, the solve within the midpoints' limits
-    /// ([`MIDPOINT_MAX_EVALUATIONS`], and `enough`: [`SolveLimits::enough`]).
+    /// `start_xz`, with its water path and sight point, without the path check; the solve within
+    /// the midpoints' limits ([`MIDPOINT_MAX_EVALUATIONS`], and `enough`:
+    /// [`SolveLimits::enough`]).
     fn exact_vertex_unchecked(
         &self,
         position: Vec3,
