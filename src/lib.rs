@@ -60,6 +60,7 @@ pub mod scene;
 pub mod seeded;
 pub mod sim;
 pub mod stability;
+pub mod stats;
 pub mod timeline;
 pub mod tools;
 pub mod vessel;

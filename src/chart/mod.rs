@@ -22,6 +22,7 @@ use crate::frame::{progress_bar, Method, RenderJob, SnellError};
 use crate::gpu::Renderer;
 use crate::output::position_error::{compare_positions, CompareOptions, PositionComparison, Side};
 use crate::refraction::flags::FlagCounts;
+use crate::stats::median;
 
 /// Membrane resolutions the linear method is charted at (cells along x and along z).
 pub const LINEAR_RESOLUTIONS: [u32; 5] = [32, 64, 128, 256, 512];
@@ -310,14 +311,6 @@ pub(crate) fn position_error_against(
         frame,
         problem: format!("cannot measure the position error against the reference: {error}"),
     })
-}
-
-fn median(values: &mut [f64]) -> f64 {
-    values.sort_by(|a, b| a.total_cmp(b));
-    if values.is_empty() {
-        return f64::NAN;
-    }
-    values[values.len() / 2]
 }
 
 /// What `snell chart` does.

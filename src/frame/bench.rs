@@ -10,6 +10,7 @@ use serde::Serialize;
 
 use super::{RenderJob, SnellError};
 use crate::gpu::Renderer;
+use crate::stats::median;
 
 #[derive(Debug, Serialize)]
 pub struct BenchFigures {
@@ -560,14 +561,6 @@ impl BenchFigures {
             self.written.to_text(),
         )
     }
-}
-
-fn median(values: &mut [f64]) -> f64 {
-    values.sort_by(|a, b| a.total_cmp(b));
-    if values.is_empty() {
-        return f64::NAN;
-    }
-    values[values.len() / 2]
 }
 
 /// Skinning throughput of `scenes/assets/Fox.glb` and ripple frames per second on a 256^2 grid.

@@ -10,6 +10,7 @@ use serde::Serialize;
 
 use super::{client, PreviewOptions, PreviewServer};
 use crate::frame::SnellError;
+use crate::stats::median;
 
 #[derive(Debug, Serialize)]
 pub struct ScrubFigures {
@@ -82,11 +83,6 @@ fn timed_png(url: &str, frame: u32) -> Result<(f64, String), SnellError> {
         ms,
         response.header("x-snell-cache").unwrap_or("").to_string(),
     ))
-}
-
-fn median(values: &mut [f64]) -> f64 {
-    values.sort_by(f64::total_cmp);
-    values[values.len() / 2]
 }
 
 /// Measures `frames` frames of `scene_path` spread over its timeline at 640x360.

@@ -18,6 +18,7 @@ use serde::Serialize;
 
 use super::{Cylinder, Image, Medium, Pane, Vessel};
 use crate::seeded::SplitMix64;
+use crate::stats::median;
 
 /// Mukai et al., Table 2: 100,000 vertices through a cylindrical glass at 96 fps on average
 /// (GTX 570, 1,600 x 1,200).
@@ -105,11 +106,6 @@ fn aquarium_pane() -> (Vessel, DVec3, Vec<DVec3>) {
 /// The vertex count of both scenarios: the paper's 100,000.
 pub const VERTICES_DEFAULT: usize = 100_000;
 
-fn median(mut values: Vec<f64>) -> f64 {
-    values.sort_by(f64::total_cmp);
-    values[values.len() / 2]
-}
-
 fn run_scenario(
     (vessel, eye, points): (Vessel, DVec3, Vec<DVec3>),
     vertices: usize,
@@ -133,7 +129,7 @@ fn run_scenario(
             .reduce(|| (0, 0, 0), |a, b| (a.0 + b.0, a.1 + b.1, a.2 + b.2));
         times.push(start.elapsed().as_secs_f64());
     }
-    let secs = median(times);
+    let secs = median(&mut times);
     ScenarioFigures {
         vertices: points.len(),
         secs,

@@ -24,6 +24,7 @@ use rayon::prelude::*;
 
 use super::search::{CellMode, Image, RefractionField, RefractionSetup};
 use super::surface::{of_water, ExactSurface};
+use crate::stats::median;
 use crate::water::{
     build_membrane, HeightField, Membrane, MembraneGrid, WaterSurface, Wave, WaveField,
 };
@@ -143,11 +144,6 @@ fn pool_vertices() -> Vec<Vec3> {
     points
 }
 
-fn median(mut values: Vec<f64>) -> f64 {
-    values.sort_by(f64::total_cmp);
-    values[values.len() / 2]
-}
-
 /// Images of every point (in parallel), returning (images, vertices with > 1 image).
 fn query_all(field: &RefractionField, points: &[Vec3], accelerated: bool) -> (usize, usize) {
     points
@@ -215,7 +211,7 @@ pub fn bench_search_with(repetitions: usize) -> SearchBenchFigures {
         frame.push(start.elapsed().as_secs_f64());
         build.push(built);
     }
-    let pool_frame_secs = median(frame);
+    let pool_frame_secs = median(&mut frame);
 
     // --- Thesis scenario.
     let thesis_surface = waves(&[(3.0, 120.0, 20.0, 0.0), (2.0, 75.0, 110.0, 1.0)]);
@@ -279,13 +275,13 @@ pub fn bench_search_with(repetitions: usize) -> SearchBenchFigures {
             },
         )
         .sum();
-    let (thesis_accelerated_secs, thesis_brute_force_secs) = (median(fast), median(slow));
+    let (thesis_accelerated_secs, thesis_brute_force_secs) = (median(&mut fast), median(&mut slow));
     SearchBenchFigures {
         vertices_per_sec: pool_points.len() as f64 / pool_frame_secs,
         pool_vertices: pool_points.len(),
         pool_facets: pool_membrane.triangles.len(),
         pool_frame_secs,
-        pool_build_secs: median(build),
+        pool_build_secs: median(&mut build),
         pool_images: pool_counts.0,
         pool_multi_image_vertices: pool_counts.1,
         speedup_vs_brute_force: thesis_brute_force_secs / thesis_accelerated_secs,
