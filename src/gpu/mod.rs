@@ -38,6 +38,7 @@ mod pipelines;
 mod pulling;
 mod readback;
 mod renderer;
+mod resolve;
 pub mod shaders;
 pub mod shading;
 mod strips;
@@ -111,6 +112,11 @@ pub enum GpuError {
         value: u32,
         count: usize,
     },
+    #[error(
+        "supersampling {asked} times a side is not possible on adapter {adapter}: 1 always, 2 \
+         where it allows 116 bytes of colour targets a pixel"
+    )]
+    BadSupersample { asked: u32, adapter: String },
     #[error("under_vertices holds {count} vertices, not a whole number of triangles")]
     PartialTriangle { count: usize },
 }
@@ -144,4 +150,9 @@ pub struct Renderer {
     /// Rows of a strip when set ([`Renderer::set_strip_rows`]); otherwise [`Renderer::strip_rows`]
     /// chooses.
     forced_strip_rows: Option<u32>,
+    /// Points a pixel along each side ([`Renderer::set_supersample`]): 1, or 2 supersampled and
+    /// resolved ([`resolve`]).
+    supersample: u32,
+    /// The resolve pass of a supersampled frame (made by [`Renderer::set_supersample`]).
+    resolve: Option<resolve::Resolve>,
 }

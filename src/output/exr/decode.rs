@@ -304,6 +304,8 @@ fn frame_of(path: &Path, image: &AnyImage) -> Result<(RenderedFrame, ReadMeta), 
         water_matte,
         water_reflection,
         motion_px,
+        // The file keeps the ranks, not the samples they were counted from.
+        coverage: Vec::new(),
     };
     Ok((frame, meta))
 }
