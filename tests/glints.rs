@@ -53,7 +53,9 @@ texture = {{ kind = "solid", color = [0.5, 0.5, 0.5] }}
 fn job(roughness: f64, supersample: u32, reference_grid: u32, method: Method) -> RenderJob {
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("glints");
     std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join(format!("glint_{roughness}_{supersample}_{reference_grid}.toml"));
+    let path = dir.join(format!(
+        "glint_{roughness}_{supersample}_{reference_grid}.toml"
+    ));
     std::fs::write(&path, scene_text(roughness, supersample, reference_grid)).unwrap();
     let mut job = RenderJob::prepare(&path).unwrap_or_else(|error| panic!("{error}"));
     job.method = method;

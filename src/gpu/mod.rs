@@ -28,8 +28,11 @@
 //! storage buffers, clipped and snapped in the shaders so that strips draw the frame's pixels;
 //! `uniform.rs` the frame constants; `buffers.rs` the vertex and index buffers; `validate.rs` the checks of a frame's draw lists; `passes.rs` the
 //! uploads and render passes encoded; `strips.rs` a frame drawn and read back strip by strip;
-//! `readback.rs` the targets, readback buffer and unpacking; `textures.rs` the texture array;
-//! `shaders.rs` and `shading.rs` the WGSL sources and their CPU mirror.
+//! `readback.rs` the targets, readback buffer and unpacking; `resolve.rs` the resolve pass of a
+//! supersampled frame (anti-aliasing: passes a to d draw its points, then the resolve filters the
+//! beauty and keeps the centre's layers); `textures.rs` the texture array;
+//! `shaders.rs` and `shading.rs` the WGSL sources and their CPU mirror (the shading model, the
+//! sun's glint included).
 
 mod buffers;
 mod device;

@@ -173,11 +173,8 @@ impl Renderer {
         // The whole frame's viewport, moved up so that the strip's first row lands on the
         // targets' row 0 (WebGPU allows a viewport beyond the attachment). Not set for a whole
         // frame, which keeps the default viewport.
-        let viewport = (targets.height < height).then_some((
-            drawn_width,
-            drawn_height,
-            drawn_first_row,
-        ));
+        let viewport =
+            (targets.height < height).then_some((drawn_width, drawn_height, drawn_first_row));
         let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
             label: Some("frame"),
         });

@@ -49,17 +49,14 @@ impl FrameUniform {
         let (frame_width, frame_height) = size;
         let (width, height, first_row, widening) = if supersampled {
             let (w, h) = (points_for(frame_width), points_for(frame_height));
-            let scale = Vec3::new(
-                (w - 1) as f32 / w as f32,
-                (h - 1) as f32 / h as f32,
-                1.0,
-            );
+            let scale = Vec3::new((w - 1) as f32 / w as f32, (h - 1) as f32 / h as f32, 1.0);
             (w, h, SUPERSAMPLE * first_row, Mat4::from_scale(scale))
         } else {
             (frame_width, frame_height, first_row, Mat4::IDENTITY)
         };
         // The camera's projection is the frame's (its aspect ratio); the widening, if any, after.
-        let clip_from_world: Mat4 = widening * view.camera.clip_from_world(frame_width, frame_height);
+        let clip_from_world: Mat4 =
+            widening * view.camera.clip_from_world(frame_width, frame_height);
         let lighting = &view.lighting;
         let water = &view.water;
         let sun_in_water = shading::sun_direction_in_water(lighting, water);

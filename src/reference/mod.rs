@@ -8,7 +8,8 @@
 //! interpolated normals) and the scene's triangles ([`bvh`]) before it. An object met before the
 //! water is shaded above water (only points that are not in the water count: the rasteriser
 //! splits objects at the exact surface and draws their under-water parts only through it). At the
-//! water, Schlick's F weights the sky seen along the reflected ray against the refracted ray,
+//! water, Schlick's F weights the sky seen along the reflected ray (plus the sun's glint,
+//! [`shading::water_reflection`]) against the refracted ray,
 //! traced through the BVH to the first point under water, shaded by `shade_under` with the true
 //! normal and the true path `|V - S|`; a refracted ray that meets nothing in the water shows the
 //! deep-water colour, as the rasteriser's stencil clear does. Every formula of the shading model
@@ -20,6 +21,11 @@
 //! for refracted pixels, 0 for sky and for water with nothing behind), the water matte and
 //! reflection, `flags` all 0: the reference has no virtual geometry to flag. Where nothing is
 //! seen each layer holds what the EXR channel map states ([`crate::draw::SKY_DEPTH_M`]).
+//!
+//! Anti-aliasing ([`TraceScene::grid`] above 1): every layer is still the centre ray's, and
+//! `grid` x `grid` stratified, jittered rays more a pixel ([`trace_frame`]) give the beauty and
+//! the water's reflection their mean (the box filter over the pixel) and the Cryptomatte its
+//! coverage, as the rasteriser's supersampled frames do (`crate::gpu`'s `resolve.rs`).
 //!
 //! Textures ([`texture`]): the GPU's array and mip chain, trilinear, at the level the GPU's
 //! derivatives would pick, estimated per hit as log2 of (footprint of the pixel at the hit,
@@ -114,7 +120,8 @@ pub struct PixelSample {
     pub depth_m: f32,
     /// Depth along the view axis of what the pixel shows (the virtual image through water).
     pub apparent_depth_m: f32,
-    /// Where the first surface is the water: (F * sky reflected, F).
+    /// Where the first surface is the water: (F * sky reflected + the sun's glint, F)
+    /// ([`shading::water_reflection`]).
     pub water_reflection: Option<Vec4>,
     /// The true point seen; NaN for sky and for water with nothing behind it (the frame holds 0).
     pub position: Vec3,
@@ -440,9 +447,9 @@ pub fn trace_frame(scene: &TraceScene, width: u32, height: u32) -> TracedFrame {
             (centre, filtered)
         })
         .collect_into_vec(&mut samples);
-    let counts = samples
-        .iter()
-        .fold((0u64, 0u64), |(refracted, evaluations), (sample, filtered)| {
+    let counts = samples.iter().fold(
+        (0u64, 0u64),
+        |(refracted, evaluations), (sample, filtered)| {
             let (more_refracted, more_evaluations) = filtered
                 .as_ref()
                 .map_or((0, 0), |f| (f.refracted, f.surface_evaluations));
@@ -450,7 +457,8 @@ pub fn trace_frame(scene: &TraceScene, width: u32, height: u32) -> TracedFrame {
                 refracted + u64::from(sample.refracted) + more_refracted,
                 evaluations + sample.surface_evaluations as u64 + more_evaluations,
             )
-        });
+        },
+    );
     let coverage = if grid > 1 {
         samples
             .iter()

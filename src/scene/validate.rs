@@ -15,8 +15,9 @@ use super::limits::{MAX_FRAME_NUMBER, MAX_TIMELINE_FRAMES};
 use super::primitives::DEFAULT_MAX_EDGE_M;
 use super::textures::{srgb_to_linear3, ImageSpec, LaneSpec, TextureSpec, TilesSpec};
 use super::{
-    AnimationChoice, AspectRule, CameraSpec, CharacterSpec, GltfCameraSpec, ObjectSpec, PathKey,
-    AntialiasSpec, Playback, QualitySpec, RippleSpec, Scene, SceneError, ShapeSpec, WaterSpec, WaveSpec,
+    AnimationChoice, AntialiasSpec, AspectRule, CameraSpec, CharacterSpec, GltfCameraSpec,
+    ObjectSpec, PathKey, Playback, QualitySpec, RippleSpec, Scene, SceneError, ShapeSpec,
+    WaterSpec, WaveSpec,
 };
 use crate::draw::Lighting;
 use crate::timeline::{CameraKey, Timeline};
