@@ -334,3 +334,51 @@ impl RenderedFrame {
 
 /// [`RenderedFrame::object`] where no object is seen.
 pub const NO_OBJECT: u32 = 0;
+
+#[cfg(test)]
+mod coverage_tests {
+    use super::*;
+
+    fn sample(object: u32, water_reflectance: Option<f32>) -> CoverageSample {
+        CoverageSample {
+            object,
+            water_reflectance,
+        }
+    }
+
+    #[test]
+    fn ranks_count_each_samples_weight_and_sort_by_share() {
+        // Half the pixel sees object 3 directly, a quarter the water (F 0.2) over object 5, a
+        // quarter the sky.
+        let ranks = coverage_ranks(&[
+            (sample(3, None), 0.5),
+            (sample(5, Some(0.2)), 0.25),
+            (sample(NO_OBJECT, None), 0.25),
+        ]);
+        let expected = [
+            (3, 0.5),
+            (5, 0.8 * 0.25),
+            (COVERAGE_WATER, 0.2 * 0.25),
+            (NO_OBJECT, 0.0),
+        ];
+        for (rank, (key, share)) in ranks.iter().zip(expected) {
+            assert_eq!(rank.key, key, "{ranks:?}");
+            assert!((rank.coverage - share).abs() < 1e-6, "{ranks:?}");
+        }
+        // Water with nothing behind it is all water; equal shares rank by key.
+        let ranks = coverage_ranks(&[(sample(NO_OBJECT, Some(0.1)), 0.5), (sample(2, None), 0.5)]);
+        assert_eq!(
+            ranks[..2],
+            [
+                CoverageRank {
+                    key: 2,
+                    coverage: 0.5
+                },
+                CoverageRank {
+                    key: COVERAGE_WATER,
+                    coverage: 0.5
+                }
+            ]
+        );
+    }
+}

@@ -88,7 +88,10 @@ pub enum GpuError {
     Poll(#[from] wgpu::PollError),
     #[error("reading the rendered frame back failed: {0}")]
     Readback(String),
-    #[error("render size {width}x{height} is not possible: each side must be between 1 and {max} pixels")]
+    #[error(
+        "render size {width}x{height} is not possible: each side must be between 1 and {max} pixels \
+         (supersampled frames draw twice as many points a side: [antialias] supersample = 1 allows twice the size)"
+    )]
     BadSize { width: u32, height: u32, max: u32 },
     #[error("texture {index} (\"{name}\") is {width}x{height} but holds {bytes} bytes; it needs width * height * 4 > 0")]
     BadTexture {

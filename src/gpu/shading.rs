@@ -239,6 +239,61 @@ mod tests {
         );
     }
 
+    /// The glint's energy, integrated numerically over the directions it leaves in (a polar grid
+    /// about the mirror direction): the exitance `∫ L cos_view dω` of a smooth-ish surface is the
+    /// sun's irradiance on it, `E_sun cos_sun`, times Fresnel's reflectance at the mirror angle
+    /// (facets integrate to one; Smith's masking takes a little at these slopes). And the glint
+    /// is zero with the sun or the eye behind the surface.
+    #[test]
+    fn the_glint_reflects_f_times_the_suns_irradiance() {
+        let mut light = lighting();
+        let elevation = 40f32.to_radians();
+        light.sun_direction = Vec3::new(0.0, elevation.sin(), elevation.cos());
+        let mut water = pool_water();
+        for roughness in [0.02f32, 0.05, 0.1] {
+            water.roughness = roughness;
+            let mirror = Vec3::new(0.0, elevation.sin(), -elevation.cos());
+            // A frame about the mirror direction.
+            let side = Vec3::X;
+            let up = side.cross(mirror);
+            let (rings, spokes) = (800, 256);
+            let max_angle = (8.0 * roughness).min(1.2);
+            let mut exitance = Vec3::ZERO;
+            for i in 0..rings {
+                let theta = (i as f32 + 0.5) / rings as f32 * max_angle;
+                let d_theta = max_angle / rings as f32;
+                for j in 0..spokes {
+                    let phi = (j as f32 + 0.5) / spokes as f32 * std::f32::consts::TAU;
+                    let out = (mirror * theta.cos()
+                        + (side * phi.cos() + up * phi.sin()) * theta.sin())
+                    .normalize();
+                    if out.y <= 0.0 {
+                        continue;
+                    }
+                    let solid_angle = theta.sin() * d_theta * std::f32::consts::TAU / spokes as f32;
+                    exitance += sun_glint(-out, Vec3::Y, &light, &water) * out.y * solid_angle;
+                }
+            }
+            let cos_sun = light.sun_direction.y;
+            let fresnel = schlick_reflectance(-mirror, Vec3::Y, 1.0, 1.333);
+            let expected = sun_irradiance(&light) * cos_sun * fresnel;
+            let ratio = exitance / expected;
+            assert!(
+                (ratio - Vec3::ONE).abs().max_element() < 0.05,
+                "roughness {roughness}: exitance {exitance} against F E cos {expected}"
+            );
+        }
+        // Sun or eye behind the surface: nothing.
+        assert_eq!(
+            sun_glint(Vec3::Y, Vec3::Y, &light, &water),
+            Vec3::ZERO,
+            "eye under the surface"
+        );
+        light.sun_direction = -light.sun_direction;
+        let down = Vec3::new(0.0, -elevation.sin(), elevation.cos());
+        assert_eq!(sun_glint(down, Vec3::Y, &light, &water), Vec3::ZERO);
+    }
+
     #[test]
     fn schlick_is_r0_at_normal_incidence_and_one_at_grazing() {
         let r0 = ((1.0f32 - 1.333) / (1.0 + 1.333)).powi(2);
