@@ -8,7 +8,9 @@ struct Frame {
     previous_clip_from_world: mat4x4<f32>,
     // xyz: eye position in world space.
     eye: vec4<f32>,
-    // x, y: the frame's size in pixels; w: the first row drawn (a strip's; 0 for a whole frame).
+    // x, y: the frame's size in pixels; z: pixels of the frame a pixel drawn spans (1; 2 where a
+    // supersampled frame's points are drawn, gpu::resolve); w: the first row drawn (a strip's; 0
+    // for a whole frame).
     viewport: vec4<f32>,
     sky_zenith: vec4<f32>,
     sky_horizon: vec4<f32>,
@@ -306,10 +308,14 @@ fn pulled_texture_coordinates(pixel: vec2<f32>, weights: vec3<f32>, corners: vec
     let right = pixel_weights(pixel + vec2<f32>(1.0, 0.0), a, b, c);
     let down = pixel_weights(pixel + vec2<f32>(0.0, 1.0), a, b, c);
     let at = uv_a * weights.x + uv_b * weights.y + uv_c * weights.z;
+    // A supersampled frame's points are half a pixel apart: their change times 2 is the pixel's,
+    // so textures take the level of the frame's pixel, as without supersampling (the texture's
+    // mip chain filters what is finer than a pixel; the points filter the edges).
+    let span = frame.viewport.z;
     return TextureCoordinates(
         at,
-        uv_a * right.x + uv_b * right.y + uv_c * right.z - at,
-        uv_a * down.x + uv_b * down.y + uv_c * down.z - at,
+        (uv_a * right.x + uv_b * right.y + uv_c * right.z - at) * span,
+        (uv_a * down.x + uv_b * down.y + uv_c * down.z - at) * span,
     );
 }
 

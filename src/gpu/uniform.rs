@@ -69,7 +69,16 @@ impl FrameUniform {
                     .clip_from_world(frame_width, frame_height))
             .to_cols_array_2d(),
             eye: vec4(view.camera.eye, 1.0),
-            viewport: [width as f32, height as f32, 0.0, first_row as f32],
+            viewport: [
+                width as f32,
+                height as f32,
+                if supersampled {
+                    SUPERSAMPLE as f32
+                } else {
+                    1.0
+                },
+                first_row as f32,
+            ],
             sky_zenith: vec4(lighting.sky_zenith_linear, 0.0),
             sky_horizon: vec4(lighting.sky_horizon_linear, 0.0),
             sun_direction: vec4(
