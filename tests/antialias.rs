@@ -17,7 +17,7 @@
 //! rasteriser mean < 0.12 and max <= 0.25, reference mean < 0.07 and max <= 0.25, not
 //! supersampled mean > 0.15.
 
-use std::path::Path;
+mod common;
 
 use glam::{Vec2, Vec3};
 use snell::draw::RenderedFrame;
@@ -71,13 +71,12 @@ texture = {{ kind = "solid", color = [1.0, 1.0, 1.0] }}
 }
 
 fn job(supersample: u32, reference_grid: u32, method: Method) -> RenderJob {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("antialias");
-    std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join(format!("edge_{supersample}_{reference_grid}.toml"));
-    std::fs::write(&path, scene_text(supersample, reference_grid)).unwrap();
-    let mut job = RenderJob::prepare(&path).unwrap_or_else(|error| panic!("{error}"));
-    job.method = method;
-    job
+    common::scene_job(
+        "antialias",
+        &format!("edge_{supersample}_{reference_grid}"),
+        &scene_text(supersample, reference_grid),
+        method,
+    )
 }
 
 /// The card's front face (facing the eye, at z = -0.0005) as a polygon in pixel coordinates.

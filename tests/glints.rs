@@ -7,7 +7,7 @@
 //! pixel by pixel at the pixel centres (both unfiltered), and in the glint's total over the frame
 //! when both filter (supersampled, and 4 x 4 rays).
 
-use std::path::Path;
+mod common;
 
 use snell::draw::RenderedFrame;
 use snell::frame::{Method, RenderJob};
@@ -51,15 +51,12 @@ texture = {{ kind = "solid", color = [0.5, 0.5, 0.5] }}
 }
 
 fn job(roughness: f64, supersample: u32, reference_grid: u32, method: Method) -> RenderJob {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("glints");
-    std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join(format!(
-        "glint_{roughness}_{supersample}_{reference_grid}.toml"
-    ));
-    std::fs::write(&path, scene_text(roughness, supersample, reference_grid)).unwrap();
-    let mut job = RenderJob::prepare(&path).unwrap_or_else(|error| panic!("{error}"));
-    job.method = method;
-    job
+    common::scene_job(
+        "glints",
+        &format!("glint_{roughness}_{supersample}_{reference_grid}"),
+        &scene_text(roughness, supersample, reference_grid),
+        method,
+    )
 }
 
 fn rasterised(renderer: &mut Renderer, roughness: f64, supersample: u32) -> RenderedFrame {

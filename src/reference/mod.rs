@@ -372,7 +372,7 @@ struct Filtered {
 }
 
 /// Seeds the jitter of pixel `(x, y)`'s rays: the same rays in every run, on every thread.
-const JITTER_SEED: u64 = 0x5eed_0f_a11a5;
+const JITTER_SEED: u64 = 0x05ee_d0fa_11a5;
 
 /// The `grid` x `grid` stratified rays of pixel `(x, y)`: one in each cell of a `grid` x `grid`
 /// split of the pixel, at a place in its cell drawn from a generator seeded by the pixel
