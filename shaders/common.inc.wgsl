@@ -8,7 +8,9 @@ struct Frame {
     previous_clip_from_world: mat4x4<f32>,
     // xyz: eye position in world space.
     eye: vec4<f32>,
-    // x, y: the frame's size in pixels; w: the first row drawn (a strip's; 0 for a whole frame).
+    // x, y: the frame's size in pixels; z: pixels of the frame a pixel drawn spans (1; 2 where a
+    // supersampled frame's points are drawn, gpu::resolve); w: the first row drawn (a strip's; 0
+    // for a whole frame).
     viewport: vec4<f32>,
     sky_zenith: vec4<f32>,
     sky_horizon: vec4<f32>,
@@ -22,7 +24,8 @@ struct Frame {
     // xyz: unit vector toward the sun as seen under the flat mean water plane; w: 1 when the sun
     // lights the water at all (0 below the horizon or under total internal reflection).
     sun_in_water: vec4<f32>,
-    // x: n_above, y: n_below, z: mean_level_m.
+    // x: n_above, y: n_below, z: mean_level_m, w: the square of the sun glint's Beckmann roughness
+    // (gpu::shading::glint_roughness2).
     water: vec4<f32>,
     // xyz: unit view direction (camera forward); depths are measured along it.
     view_forward: vec4<f32>,
@@ -95,17 +98,77 @@ fn ray_through_pixel(pixel: vec2<f32>) -> vec3<f32> {
     return normalize(far.xyz / far.w - frame.eye.xyz);
 }
 
-// Radiance of the sky seen along unit direction `direction`: a zenith-horizon gradient (the
-// horizon colour below the horizon) plus the sun disk.
-fn sky_radiance(direction: vec3<f32>) -> vec3<f32> {
+// The largest radiance shaded: the largest half float (gpu::shading::RADIANCE_MAX).
+const RADIANCE_MAX: f32 = 65504.0;
+
+// Radiance of the sky seen along unit direction `direction` without the sun: a zenith-horizon
+// gradient (the horizon colour below the horizon).
+fn sky_gradient(direction: vec3<f32>) -> vec3<f32> {
     let up = clamp(direction.y, 0.0, 1.0);
     let toward_horizon = 1.0 - up;
     let horizon_weight = toward_horizon * toward_horizon * toward_horizon;
-    var radiance = frame.sky_zenith.xyz * (1.0 - horizon_weight) + frame.sky_horizon.xyz * horizon_weight;
+    return frame.sky_zenith.xyz * (1.0 - horizon_weight) + frame.sky_horizon.xyz * horizon_weight;
+}
+
+// Radiance of the sky seen along unit direction `direction`: the gradient plus the sun disk.
+fn sky_radiance(direction: vec3<f32>) -> vec3<f32> {
+    var radiance = sky_gradient(direction);
     if dot(direction, frame.sun_direction.xyz) >= frame.sun_direction.w {
         radiance = radiance + frame.sun_color.xyz * frame.sun_color.w;
     }
-    return radiance;
+    return min(radiance, vec3<f32>(RADIANCE_MAX));
+}
+
+// Smith's masking for a Beckmann surface of roughness `alpha` (gpu::shading::smith_beckmann).
+fn smith_beckmann(cos_in: f32, alpha: f32) -> f32 {
+    let c = clamp(cos_in, 1e-6, 1.0);
+    let t = sqrt(max(1.0 - c * c, 0.0)) / c;
+    let a = 1.0 / max(alpha * t, 1e-30);
+    if a >= 1.6 {
+        return 1.0;
+    }
+    return (3.535 * a + 2.181 * a * a) / (1.0 + 2.276 * a + 2.577 * a * a);
+}
+
+// The sun's glint off facets finer than the membrane (gpu::shading::sun_glint): Cook-Torrance,
+// Beckmann of roughness^2 frame.water.w, Smith, Schlick at the facet; the sun's irradiance is
+// pi times its colour.
+fn sun_glint(incident: vec3<f32>, normal: vec3<f32>) -> vec3<f32> {
+    let to_eye = -incident;
+    let to_sun = frame.sun_direction.xyz;
+    let cos_view = dot(normal, to_eye);
+    let cos_sun = dot(normal, to_sun);
+    if cos_view <= 0.0 || cos_sun <= 0.0 {
+        return vec3<f32>(0.0);
+    }
+    let sum = to_eye + to_sun;
+    let sum_length = length(sum);
+    if sum_length <= 0.0 {
+        return vec3<f32>(0.0);
+    }
+    let half_vector = sum / sum_length;
+    let cos_half = dot(normal, half_vector);
+    if cos_half <= 0.0 {
+        return vec3<f32>(0.0);
+    }
+    let alpha2 = frame.water.w;
+    let alpha = sqrt(alpha2);
+    let cos2 = cos_half * cos_half;
+    let tan2 = max(1.0 - cos2, 0.0) / cos2;
+    let distribution = exp(-tan2 / alpha2) / (3.14159265358979 * alpha2 * cos2 * cos2);
+    let masking = smith_beckmann(cos_view, alpha) * smith_beckmann(cos_sun, alpha);
+    let fresnel = schlick_reflectance(incident, half_vector);
+    let glint = 3.14159265358979 * frame.sun_color.xyz * (fresnel * distribution * masking / (4.0 * cos_view));
+    return min(glint, vec3<f32>(RADIANCE_MAX));
+}
+
+// What the water reflects toward the eye (gpu::shading::water_reflection), premultiplied:
+// (F * sky gradient reflected + the sun's glint, F).
+fn water_reflection(incident: vec3<f32>, normal: vec3<f32>) -> vec4<f32> {
+    let reflectance = schlick_reflectance(incident, normal);
+    let reflected = reflect(incident, normal);
+    let radiance = reflectance * sky_gradient(reflected) + sun_glint(incident, normal);
+    return vec4<f32>(min(radiance, vec3<f32>(RADIANCE_MAX)), reflectance);
 }
 
 // Fraction reflected at the membrane by Schlick's approximation (ALGORITHM §3) for a sight ray
@@ -245,10 +308,14 @@ fn pulled_texture_coordinates(pixel: vec2<f32>, weights: vec3<f32>, corners: vec
     let right = pixel_weights(pixel + vec2<f32>(1.0, 0.0), a, b, c);
     let down = pixel_weights(pixel + vec2<f32>(0.0, 1.0), a, b, c);
     let at = uv_a * weights.x + uv_b * weights.y + uv_c * weights.z;
+    // A supersampled frame's points are half a pixel apart: their change times 2 is the pixel's,
+    // so textures take the level of the frame's pixel, as without supersampling (the texture's
+    // mip chain filters what is finer than a pixel; the points filter the edges).
+    let span = frame.viewport.z;
     return TextureCoordinates(
         at,
-        uv_a * right.x + uv_b * right.y + uv_c * right.z - at,
-        uv_a * down.x + uv_b * down.y + uv_c * down.z - at,
+        (uv_a * right.x + uv_b * right.y + uv_c * right.z - at) * span,
+        (uv_a * down.x + uv_b * down.y + uv_c * down.z - at) * span,
     );
 }
 

@@ -95,6 +95,9 @@ pub struct WaterOptics {
     pub scatter_color_linear: Vec3,
     /// Height of the mean (flat) water plane, metres; sunlight is refracted through it.
     pub mean_level_m: f32,
+    /// Rms slope of the waves finer than the membrane (Beckmann's roughness): how far the sun's
+    /// glint spreads ([`crate::gpu::shading::sun_glint`]).
+    pub roughness: f32,
 }
 
 /// Everything the GPU needs to draw one frame.
@@ -168,12 +171,78 @@ pub struct RenderedFrame {
     /// pixel now minus where the same point was seen at t-1, through water too); 0 where nothing
     /// is seen. Empty when not computed (the ray-traced methods) or read from an EXR without it.
     pub motion_px: Vec<[f32; 2]>,
+    /// Per pixel, what shares it, counted over its samples ([`coverage_ranks`]): the Cryptomatte's
+    /// ranks. Empty for frames of one sample a pixel (and frames read from an EXR), whose ranks
+    /// follow from `object` and `water_reflection` alone.
+    pub coverage: Vec<[CoverageRank; COVERAGE_RANKS]>,
+}
+
+/// Ranks of [`RenderedFrame::coverage`] kept per pixel.
+pub const COVERAGE_RANKS: usize = 4;
+/// [`CoverageRank::key`] of the water surface.
+pub const COVERAGE_WATER: u32 = u32::MAX;
+
+/// One rank of a pixel's coverage: who holds a share of it (an object as
+/// [`RenderedFrame::object`] numbers it, or [`COVERAGE_WATER`]; [`NO_OBJECT`] for an empty rank)
+/// and the share (0 to 1).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct CoverageRank {
+    pub key: u32,
+    pub coverage: f32,
+}
+
+/// What one sample of a pixel shows, for its coverage: the object seen (directly or through the
+/// water; [`NO_OBJECT`] for none) and, where the first surface is the water, Schlick's F there.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CoverageSample {
+    pub object: u32,
+    pub water_reflectance: Option<f32>,
+}
+
+/// The ranks of a pixel from its samples and their weights (which sum to 1), as the Cryptomatte
+/// counts them: each sample shares its weight between the water (its F, or all of it where
+/// nothing is behind the water) and the object seen (the rest), sky holding nothing; ranked by
+/// share, largest first (equal shares by key), at most [`COVERAGE_RANKS`] kept. One sample of
+/// weight 1 gives what a frame of one sample a pixel writes
+/// (`crate::output::exr::cryptomatte::pixel_ranks`).
+pub fn coverage_ranks(samples: &[(CoverageSample, f32)]) -> [CoverageRank; COVERAGE_RANKS] {
+    // At most two keys a sample.
+    let mut shares: Vec<CoverageRank> = Vec::with_capacity(2 * samples.len());
+    let mut add = |key: u32, share: f32| {
+        if key == NO_OBJECT || share <= 0.0 {
+            return;
+        }
+        match shares.iter_mut().find(|rank| rank.key == key) {
+            Some(rank) => rank.coverage += share,
+            None => shares.push(CoverageRank {
+                key,
+                coverage: share,
+            }),
+        }
+    };
+    for &(sample, weight) in samples {
+        match sample.water_reflectance {
+            Some(reflectance) if sample.object != NO_OBJECT => {
+                add(COVERAGE_WATER, reflectance * weight);
+                add(sample.object, (1.0 - reflectance) * weight);
+            }
+            Some(_) => add(COVERAGE_WATER, weight),
+            None => add(sample.object, weight),
+        }
+    }
+    shares.sort_by(|a, b| b.coverage.total_cmp(&a.coverage).then(a.key.cmp(&b.key)));
+    let mut ranks = [CoverageRank::default(); COVERAGE_RANKS];
+    for (rank, share) in ranks.iter_mut().zip(shares) {
+        *rank = share;
+    }
+    ranks
 }
 
 impl RenderedFrame {
     /// What [`Self::layer_bytes`] counts a pixel with every layer: beauty 16, `Z` 4, apparent
-    /// depth 4, position 12, flags 4, object 4, water matte 4, sky reflection 16, motion 8.
-    pub const LAYER_BYTES_PER_PIXEL: usize = 72;
+    /// depth 4, position 12, flags 4, object 4, water matte 4, sky reflection 16, motion 8,
+    /// coverage 32 (multisampled frames).
+    pub const LAYER_BYTES_PER_PIXEL: usize = 104;
 
     /// Pixels of the frame (`width * height`).
     pub fn pixel_count(&self) -> usize {
@@ -193,6 +262,7 @@ impl RenderedFrame {
             + size_of_val(self.water_matte.as_slice())
             + size_of_val(self.water_reflection.as_slice())
             + size_of_val(self.motion_px.as_slice())
+            + size_of_val(self.coverage.as_slice())
     }
 
     /// The frame made of `strips` (bands of rows of one width, top first), one under the other.
@@ -223,6 +293,7 @@ impl RenderedFrame {
         self.object.extend(strip.object);
         self.water_matte.extend(strip.water_matte);
         self.water_reflection.extend(strip.water_reflection);
+        self.coverage.extend(strip.coverage);
     }
 
     /// Adds `strip`, the next band of rows of a frame `height` rows high, to `whole`, the rows
@@ -255,8 +326,59 @@ impl RenderedFrame {
         self.object.reserve_exact(pixels);
         self.water_matte.reserve_exact(pixels);
         self.water_reflection.reserve_exact(pixels);
+        if !self.coverage.is_empty() {
+            self.coverage.reserve_exact(pixels);
+        }
     }
 }
 
 /// [`RenderedFrame::object`] where no object is seen.
 pub const NO_OBJECT: u32 = 0;
+
+#[cfg(test)]
+mod coverage_tests {
+    use super::*;
+
+    fn sample(object: u32, water_reflectance: Option<f32>) -> CoverageSample {
+        CoverageSample {
+            object,
+            water_reflectance,
+        }
+    }
+
+    #[test]
+    fn ranks_count_each_samples_weight_and_sort_by_share() {
+        // Half the pixel sees object 3 directly, a quarter the water (F 0.2) over object 5, a
+        // quarter the sky.
+        let ranks = coverage_ranks(&[
+            (sample(3, None), 0.5),
+            (sample(5, Some(0.2)), 0.25),
+            (sample(NO_OBJECT, None), 0.25),
+        ]);
+        let expected = [
+            (3, 0.5),
+            (5, 0.8 * 0.25),
+            (COVERAGE_WATER, 0.2 * 0.25),
+            (NO_OBJECT, 0.0),
+        ];
+        for (rank, (key, share)) in ranks.iter().zip(expected) {
+            assert_eq!(rank.key, key, "{ranks:?}");
+            assert!((rank.coverage - share).abs() < 1e-6, "{ranks:?}");
+        }
+        // Water with nothing behind it is all water; equal shares rank by key.
+        let ranks = coverage_ranks(&[(sample(NO_OBJECT, Some(0.1)), 0.5), (sample(2, None), 0.5)]);
+        assert_eq!(
+            ranks[..2],
+            [
+                CoverageRank {
+                    key: 2,
+                    coverage: 0.5
+                },
+                CoverageRank {
+                    key: COVERAGE_WATER,
+                    coverage: 0.5
+                }
+            ]
+        );
+    }
+}

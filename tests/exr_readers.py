@@ -106,29 +106,55 @@ def main():
             total += np.where(ids.view(np.uint32) == bits, coverage.astype(np.float64), 0.0)
         return total
 
+    # The frame is anti-aliased (README, "Anti-aliasing"): the Cryptomatte counts each pixel's
+    # samples, while IndexOB and the water matte are the pixel centre's. So a pixel's coverage is
+    # exactly its centre's only inside a region: where the 3 x 3 pixels around it agree.
+    def interior(mask):
+        padded = np.pad(mask, 1, mode="edge")
+        inside = np.ones_like(mask)
+        for dy in (0, 1, 2):
+            for dx in (0, 1, 2):
+                inside &= padded[dy:dy + height, dx:dx + width]
+        return inside
+
     water_matte = matte("water")
-    check(np.array_equal(water_matte > 0, water == 1), "the water's Cryptomatte is the water matte")
+    mattes = {name: matte(name) for name in object_names}
+    total = water_matte + sum(mattes.values())
+    check(np.all(total <= 1 + 1e-6), "the shares of a pixel sum to at most 1")
+    # Only two ranks are written: where the water's share is missing from a water pixel, three or
+    # more IDs met there and the two written hold other IDs (the water's share F is the smallest).
+    water_bits = np.uint32(cryptomatte_id_bits("water"))
+    dropped = (water == 1) & (water_matte == 0)
+    for ids, coverage in ranks:
+        check(
+            np.all((coverage[dropped] > 0) & (ids[dropped].view(np.uint32) != water_bits)),
+            f"the water's Cryptomatte covers the water matte but where two other IDs outrank it ({dropped.sum()} px)",
+        )
+    check(np.all(water_matte[interior(water == 0)] == 0), "no water share inside dry regions")
     seen_objects = 0
     for k, name in enumerate(object_names, start=1):
-        m = matte(name)
+        m = mattes[name]
         own = index == k
         if not own.any():
             continue
         seen_objects += 1
-        check(np.all(m[~own] == 0), f"{name!r}: no matte where IndexOB is not {k}")
-        check(np.all(m[own & (water == 0)] == 1), f"{name!r}: matte 1 where seen directly")
-        through = own & (water == 1)
+        check(np.all(m[interior(~own)] == 0), f"{name!r}: no matte inside regions where IndexOB is not {k}")
+        direct = interior(own & (water == 0))
+        check(np.all(m[direct] == 1), f"{name!r}: matte 1 inside regions seen directly")
+        through = interior(own & (water == 1))
         if through.any():
             shares = m[through] + water_matte[through]
             check(
                 np.all((m[through] > 0) & (np.abs(shares - 1) < 1e-6)),
                 f"{name!r}: through water the object and the water share the pixel ({through.sum()} px)",
             )
+        check(np.mean(m[own] > 0) > 0.99, f"{name!r}: a matte where IndexOB is {k}")
     check(seen_objects >= 3, f"{seen_objects} objects are seen")
     empty = (index == 0) & (water == 0)
     check(empty.any(), "some pixels see sky")
     for ids, coverage in ranks:
-        check(np.all(coverage[empty] == 0) and np.all(ids[empty] == 0), "sky has no Cryptomatte ID")
+        inside = interior(empty)
+        check(np.all(coverage[inside] == 0) and np.all(ids[inside] == 0), "sky has no Cryptomatte ID")
 
     # Sky and what is not seen.
     check(np.all(layer("Z")[empty] == SKY_DEPTH_M), "sky Z is 1e10")

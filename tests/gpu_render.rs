@@ -12,7 +12,9 @@ use snell::draw::{
     flag_bits, DrawMaterial, FrameDraw, FrameView, Lighting, MembraneVertex, RenderedFrame,
     TrueVertex, VirtualVertex, WaterOptics, SKY_DEPTH_M,
 };
-use snell::gpu::shading::{schlick_reflectance, shade_above, shade_under, sky_radiance};
+use snell::gpu::shading::{
+    schlick_reflectance, shade_above, shade_under, sky_radiance, water_reflection,
+};
 use snell::gpu::{GpuError, Renderer};
 use snell::mesh::Texture;
 
@@ -53,6 +55,7 @@ fn view() -> FrameView {
             absorption_per_m: Vec3::new(0.45, 0.12, 0.06),
             scatter_color_linear: Vec3::new(0.01, 0.06, 0.09),
             mean_level_m: 0.0,
+            roughness: 0.05,
         },
     }
 }
@@ -399,14 +402,15 @@ fn every_unambiguous_pixel_matches_the_cpu_model() {
                 let normal = Vec3::Y;
                 let f =
                     schlick_reflectance(direction, normal, view.water.n_above, view.water.n_below);
-                let reflected = direction - 2.0 * direction.dot(normal) * normal;
+                let (sky, f_model) =
+                    water_reflection(direction, normal, &view.lighting, &view.water);
+                assert_eq!(f, f_model, "the reflection's F is Schlick's");
                 let membrane_depth = depth_of(membrane_t);
                 assert!(
                     (depth - membrane_depth).abs() <= 1e-4 * membrane_depth,
                     "pixel ({x},{y}) Z {depth} vs {membrane_depth}"
                 );
                 assert_eq!(matte, 1.0, "water pixel ({x},{y}) matte");
-                let sky = f * sky_radiance(reflected, &view.lighting);
                 assert!(
                     (reflection[3] - f).abs() <= 1e-5,
                     "pixel ({x},{y}) F {reflection:?} vs {f}"

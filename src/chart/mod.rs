@@ -134,6 +134,7 @@ pub struct Measurer<'a> {
     original: Configuration,
     /// The job's own [`RenderJob::frames_held`], restored when the measurer is dropped.
     original_frames_held: u32,
+    original_reference_grid: u32,
 }
 
 impl<'a> Measurer<'a> {
@@ -147,6 +148,9 @@ impl<'a> Measurer<'a> {
         frames_held: u32,
     ) -> Result<Self, SnellError> {
         let original_frames_held = std::mem::replace(&mut job.frames_held, frames_held);
+        // The reference's positions are its pixel centres' whatever its grid: only the centre
+        // rays are traced for them (the beauty stays unfiltered; nothing here measures it).
+        let original_reference_grid = std::mem::replace(&mut job.scene.antialias.reference_grid, 1);
         let mut renderer = Renderer::new()?;
         job.upload_textures(&mut renderer)?;
         let original = Configuration {
@@ -160,6 +164,7 @@ impl<'a> Measurer<'a> {
             height,
             original,
             original_frames_held,
+            original_reference_grid,
         })
     }
 
@@ -265,6 +270,7 @@ impl Drop for Measurer<'_> {
         let original = self.original;
         self.configure(original);
         self.job.frames_held = self.original_frames_held;
+        self.job.scene.antialias.reference_grid = self.original_reference_grid;
     }
 }
 

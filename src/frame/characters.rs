@@ -475,6 +475,7 @@ mod tests {
             water_matte: vec![0.0; pixels],
             water_reflection: vec![[0.0; 4]; pixels],
             motion_px: vec![[0.0; 2]; pixels],
+            coverage: Vec::new(),
         };
         let checked = super::super::checked_strip(1, &ids, 0, strip).unwrap();
         assert_eq!(

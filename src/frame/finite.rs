@@ -71,6 +71,7 @@ mod tests {
             water_matte: vec![0.0, 0.0, 1.0, 0.0],
             water_reflection: vec![[0.0; 4], [0.0; 4], [0.1, 0.1, 0.1, 0.02], [0.0; 4]],
             motion_px: vec![[0.5, -2.0], [0.0; 2], [0.0; 2], [1.0, 0.0]],
+            coverage: Vec::new(),
         }
     }
 

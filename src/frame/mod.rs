@@ -825,6 +825,7 @@ impl RenderJob {
                     self.method.name()
                 ))
             })?;
+            renderer.set_supersample(self.scene.antialias.supersample)?;
             renderer.render_strips(
                 &refracted.draw,
                 &refracted.view,
@@ -1092,6 +1093,17 @@ fn checked_strip(
                 SnellError::Argument(format!(
                     "frame {frame}: object index {} is not one of the {} objects drawn",
                     *object - 1,
+                    ids.len()
+                ))
+            })?;
+        }
+    }
+    for rank in strip.coverage.iter_mut().flatten() {
+        if rank.key != crate::draw::NO_OBJECT && rank.key != crate::draw::COVERAGE_WATER {
+            rank.key = ids.get(rank.key as usize - 1).copied().ok_or_else(|| {
+                SnellError::Argument(format!(
+                    "frame {frame}: coverage of object index {} is not one of the {} objects drawn",
+                    rank.key - 1,
                     ids.len()
                 ))
             })?;

@@ -14,7 +14,7 @@ use std::sync::{Arc, Condvar, Mutex};
 pub(super) const WRITE_QUEUE_BYTES: usize = 256 << 20;
 
 /// The queue's capacity for frames of `width` x `height`: two whole frames with every layer
-/// (1280x720: 133 MB), at most [`WRITE_QUEUE_BYTES`]. So the frames in flight (one rendered, two
+/// (1280x720: 192 MB), at most [`WRITE_QUEUE_BYTES`]. So the frames in flight (one rendered, two
 /// waiting, one written) are the four strips the memory estimate counts
 /// (`scene::resources`, `BYTES_PER_STRIP_PIXEL`), for small frames as for large.
 pub(super) fn capacity_for(width: u32, height: u32) -> usize {
@@ -183,8 +183,9 @@ mod tests {
             water_matte: vec![0.0; pixels],
             water_reflection: vec![[0.0; 4]; pixels],
             motion_px: vec![[0.0; 2]; pixels],
+            coverage: vec![Default::default(); pixels],
         };
-        assert_eq!(frame.layer_bytes(), 72 * pixels);
+        assert_eq!(frame.layer_bytes(), 104 * pixels);
         assert_eq!(capacity_for(1280, 720), 2 * frame.layer_bytes());
         assert_eq!(capacity_for(7680, 4320), WRITE_QUEUE_BYTES);
     }

@@ -122,6 +122,7 @@ impl RenderJob {
             membrane: &inputs.membrane,
             view: refracted.view,
             water_model,
+            grid: self.scene.antialias.reference_grid,
         };
         let clock = Instant::now();
         let traced = reference::trace_frame(&scene, width, height);

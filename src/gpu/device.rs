@@ -19,6 +19,9 @@ pub(crate) struct TargetFormats {
     pub beauty: wgpu::TextureFormat,
     /// Depth32FloatStencil8 where supported, else Depth24PlusStencil8.
     pub depth_stencil: wgpu::TextureFormat,
+    /// Whether the adapter takes the resolve pass of a supersampled frame (its seven targets:
+    /// [`super::resolve`]).
+    pub supersampling: bool,
 }
 
 /// World position and distance as float bits: float32 on every backend.
@@ -132,9 +135,18 @@ impl GpuContext {
         } else {
             wgpu::TextureFormat::Rgba16Float
         };
+        // The resolve pass of a supersampled frame adds the corner and edge coverage (16 bytes
+        // each).
+        let beauty_bytes = beauty.block_copy_size(None).unwrap_or(16);
+        let resolve_bytes = bytes_per_sample(beauty_bytes) + 2 * 16;
+        let supersampling = allowed_bytes_per_sample >= resolve_bytes;
         required_limits.max_color_attachment_bytes_per_sample = required_limits
             .max_color_attachment_bytes_per_sample
-            .max(bytes_per_sample(beauty.block_copy_size(None).unwrap_or(16)));
+            .max(if supersampling {
+                resolve_bytes
+            } else {
+                bytes_per_sample(beauty_bytes)
+            });
         let depth_stencil = if available.contains(wgpu::Features::DEPTH32FLOAT_STENCIL8) {
             required_features |= wgpu::Features::DEPTH32FLOAT_STENCIL8;
             wgpu::TextureFormat::Depth32FloatStencil8
@@ -162,6 +174,7 @@ impl GpuContext {
             formats: TargetFormats {
                 beauty,
                 depth_stencil,
+                supersampling,
             },
         })
     }

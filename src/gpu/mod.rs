@@ -28,8 +28,11 @@
 //! storage buffers, clipped and snapped in the shaders so that strips draw the frame's pixels;
 //! `uniform.rs` the frame constants; `buffers.rs` the vertex and index buffers; `validate.rs` the checks of a frame's draw lists; `passes.rs` the
 //! uploads and render passes encoded; `strips.rs` a frame drawn and read back strip by strip;
-//! `readback.rs` the targets, readback buffer and unpacking; `textures.rs` the texture array;
-//! `shaders.rs` and `shading.rs` the WGSL sources and their CPU mirror.
+//! `readback.rs` the targets, readback buffer and unpacking; `resolve.rs` the resolve pass of a
+//! supersampled frame (anti-aliasing: passes a to d draw its points, then the resolve filters the
+//! beauty and keeps the centre's layers); `textures.rs` the texture array;
+//! `shaders.rs` and `shading.rs` the WGSL sources and their CPU mirror (the shading model, the
+//! sun's glint included).
 
 mod buffers;
 mod device;
@@ -38,6 +41,7 @@ mod pipelines;
 mod pulling;
 mod readback;
 mod renderer;
+mod resolve;
 pub mod shaders;
 pub mod shading;
 mod strips;
@@ -84,7 +88,10 @@ pub enum GpuError {
     Poll(#[from] wgpu::PollError),
     #[error("reading the rendered frame back failed: {0}")]
     Readback(String),
-    #[error("render size {width}x{height} is not possible: each side must be between 1 and {max} pixels")]
+    #[error(
+        "render size {width}x{height} is not possible: each side must be between 1 and {max} pixels \
+         (supersampled frames draw twice as many points a side: [antialias] supersample = 1 allows twice the size)"
+    )]
     BadSize { width: u32, height: u32, max: u32 },
     #[error("texture {index} (\"{name}\") is {width}x{height} but holds {bytes} bytes; it needs width * height * 4 > 0")]
     BadTexture {
@@ -111,6 +118,11 @@ pub enum GpuError {
         value: u32,
         count: usize,
     },
+    #[error(
+        "supersampling {asked} times a side is not possible on adapter {adapter}: 1 always, 2 \
+         where it allows 116 bytes of colour targets a pixel"
+    )]
+    BadSupersample { asked: u32, adapter: String },
     #[error("under_vertices holds {count} vertices, not a whole number of triangles")]
     PartialTriangle { count: usize },
 }
@@ -144,4 +156,9 @@ pub struct Renderer {
     /// Rows of a strip when set ([`Renderer::set_strip_rows`]); otherwise [`Renderer::strip_rows`]
     /// chooses.
     forced_strip_rows: Option<u32>,
+    /// Points a pixel along each side ([`Renderer::set_supersample`]): 1, or 2 supersampled and
+    /// resolved ([`resolve`]).
+    supersample: u32,
+    /// The resolve pass of a supersampled frame (made by [`Renderer::set_supersample`]).
+    resolve: Option<resolve::Resolve>,
 }

@@ -1,5 +1,6 @@
 //! The passes of a frame (or a strip) encoded: the frame's uploads, the main render pass (draws
-//! 1 to 5) and pass d.
+//! 1 to 5) and pass d, and for a supersampled frame the resolve pass after them
+//! ([`super::resolve`]).
 
 use super::pipelines::MEMBRANE_STENCIL;
 use super::pulling::{bind_group, PulledBindGroups, CORNERS_PER_TRIANGLE};
@@ -78,8 +79,40 @@ impl Renderer {
     }
 
     /// The passes of a frame; `viewport`, for a strip: the frame's width and height and the
-    /// strip's first row.
+    /// strip's first row (of the points, for a supersampled frame). A supersampled frame draws its
+    /// points, then resolves them into `targets`.
     pub(super) fn encode_passes(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        draw: &FrameDraw,
+        targets: &FrameTargets,
+        viewport: Option<(u32, u32, u32)>,
+    ) {
+        let (Some(points), Some(resolve)) = (&targets.points, &self.resolve) else {
+            self.encode_drawn_passes(encoder, draw, targets, viewport);
+            return;
+        };
+        self.encode_drawn_passes(encoder, draw, &points.targets, viewport);
+        let [corners, edges] = &targets.coverage_views[..] else {
+            unreachable!("a supersampled frame's targets have two coverage targets");
+        };
+        resolve.encode(
+            encoder,
+            &points.resolve_bind_group,
+            [
+                &targets.beauty_view,
+                &targets.position_view,
+                &targets.flags_view,
+                &targets.reflection_view,
+                &targets.extra_view,
+                corners,
+                edges,
+            ],
+        );
+    }
+
+    /// Passes a to d into `targets`.
+    fn encode_drawn_passes(
         &self,
         encoder: &mut wgpu::CommandEncoder,
         draw: &FrameDraw,

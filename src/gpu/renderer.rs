@@ -154,7 +154,49 @@ impl Renderer {
             pulled: Default::default(),
             targets: None,
             forced_strip_rows: None,
+            supersample: 1,
+            resolve: None,
         })
+    }
+
+    /// Whether this adapter can supersample ([`Self::set_supersample`]): it must take the resolve
+    /// pass's seven targets.
+    pub fn can_supersample(&self) -> bool {
+        self.context.formats.supersampling
+    }
+
+    /// How the frames drawn from now on are sampled: 1 (the default), every layer at the pixel
+    /// centre; or 2, supersampled ([`super::resolve`]): drawn on a grid of points half a pixel
+    /// apart (four points a pixel), the beauty filtered by the box over the pixel, `Z`, `P`, IDs
+    /// and flags the pixel centre's, the Cryptomatte's coverage counted over the points.
+    pub fn set_supersample(&mut self, supersample: u32) -> Result<(), GpuError> {
+        if supersample == self.supersample {
+            return Ok(());
+        }
+        let possible = supersample == 1
+            || (supersample == super::resolve::SUPERSAMPLE && self.can_supersample());
+        if !possible {
+            return Err(GpuError::BadSupersample {
+                asked: supersample,
+                adapter: self.adapter_summary(),
+            });
+        }
+        if supersample > 1 && self.resolve.is_none() {
+            let device = self.context.device.clone();
+            let resolve = within_error_scopes(&device, "creating the resolve pass", || {
+                super::resolve::Resolve::new(&self.context)
+            })?;
+            self.resolve = Some(resolve);
+        }
+        self.supersample = supersample;
+        // Targets of the old sampling go.
+        self.targets = None;
+        Ok(())
+    }
+
+    /// How the frames drawn are sampled ([`Self::set_supersample`]).
+    pub fn supersample(&self) -> u32 {
+        self.supersample
     }
 
     /// Name, backend, device type and driver of the adapter in use.

@@ -31,7 +31,7 @@ impl ShaderModuleSource {
 }
 
 /// (name, file, text) of every pass's module.
-const PASS_SOURCES: [(&str, &str, &str); 5] = [
+const PASS_SOURCES: [(&str, &str, &str); 6] = [
     (
         "sky",
         "shaders/sky.wgsl",
@@ -56,6 +56,11 @@ const PASS_SOURCES: [(&str, &str, &str); 5] = [
         "under",
         "shaders/under.wgsl",
         include_str!("../../shaders/under.wgsl"),
+    ),
+    (
+        "resolve",
+        "shaders/resolve.wgsl",
+        include_str!("../../shaders/resolve.wgsl"),
     ),
 ];
 

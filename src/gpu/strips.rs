@@ -3,6 +3,7 @@
 
 use super::device::within_error_scopes;
 use super::readback::{read_back, readback_bytes_per_row, FrameTargets};
+use super::resolve::{points_for, SUPERSAMPLE};
 use super::uniform::FrameUniform;
 use super::{GpuError, Renderer};
 use crate::draw::{FrameDraw, FrameView, RenderedFrame};
@@ -64,7 +65,7 @@ impl Renderer {
     /// of [`STRIP_ROW_MULTIPLE`].
     pub fn strip_rows(&self, width: u32, height: u32) -> u32 {
         let budget = STRIP_READBACK_BYTES.min(self.context.device.limits().max_buffer_size);
-        let row_bytes = readback_bytes_per_row(&self.context, width);
+        let row_bytes = readback_bytes_per_row(&self.context, width, self.supersample);
         strip_rows_for(height, row_bytes, budget, self.forced_strip_rows)
     }
 
@@ -96,8 +97,9 @@ impl Renderer {
             self.targets = Some(FrameTargets::new(
                 &self.context,
                 &self.reflection_layout,
-                width,
-                rows,
+                self.resolve.as_ref(),
+                (width, rows),
+                self.supersample,
             ));
         }
         let device = self.context.device.clone();
@@ -147,16 +149,32 @@ impl Renderer {
         let device = &self.context.device;
         let queue = &self.context.queue;
         let (width, height) = size;
+        let targets = self.targets.as_ref().expect("created above");
+        // A supersampled frame draws its points: the frame of 2 width + 1 by 2 height + 1
+        // points, a strip from point row 2 first_row (super::resolve).
+        let (drawn_width, drawn_height, drawn_first_row) = match &targets.points {
+            Some(_) => (
+                points_for(width),
+                points_for(height),
+                SUPERSAMPLE * first_row,
+            ),
+            None => (width, height, first_row),
+        };
         queue.write_buffer(
             &self.frame_uniform,
             0,
-            bytemuck::bytes_of(&FrameUniform::new(view, width, height, first_row)),
+            bytemuck::bytes_of(&FrameUniform::new(
+                view,
+                (width, height),
+                first_row,
+                targets.points.is_some(),
+            )),
         );
-        let targets = self.targets.as_ref().expect("created above");
         // The whole frame's viewport, moved up so that the strip's first row lands on the
         // targets' row 0 (WebGPU allows a viewport beyond the attachment). Not set for a whole
         // frame, which keeps the default viewport.
-        let viewport = (targets.height < height).then_some((width, height, first_row));
+        let viewport =
+            (targets.height < height).then_some((drawn_width, drawn_height, drawn_first_row));
         let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
             label: Some("frame"),
         });

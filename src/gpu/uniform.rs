@@ -3,6 +3,7 @@
 
 use glam::{Mat4, Vec3};
 
+use super::resolve::{points_for, SUPERSAMPLE};
 use super::shading;
 use crate::draw::FrameView;
 
@@ -32,22 +33,52 @@ fn vec4(v: Vec3, w: f32) -> [f32; 4] {
 }
 
 impl FrameUniform {
-    /// The constants of a frame of `width` x `height` drawn from its row `first_row` down (0 for
-    /// a whole frame; a strip's first row otherwise, which the shaders add to a fragment's y).
-    pub(super) fn new(view: &FrameView, width: u32, height: u32, first_row: u32) -> FrameUniform {
-        let clip_from_world: Mat4 = view.camera.clip_from_world(width, height);
+    /// The constants of a frame of `size` (width, height) drawn from its row `first_row` down (0
+    /// for a whole frame; a strip's first row otherwise, which the shaders add to a fragment's y).
+    /// `supersampled`: the frame's points are drawn instead (`super::resolve`), a frame of
+    /// `2 width + 1` by `2 height + 1` whose pixel centres are the frame's pixel corners, edge
+    /// midpoints and centres: the projection widened by a quarter pixel on each side (clip x
+    /// and y scaled by `2 width / (2 width + 1)` and `2 height / (2 height + 1)`), from point row
+    /// `2 first_row`.
+    pub(super) fn new(
+        view: &FrameView,
+        size: (u32, u32),
+        first_row: u32,
+        supersampled: bool,
+    ) -> FrameUniform {
+        let (frame_width, frame_height) = size;
+        let (width, height, first_row, widening) = if supersampled {
+            let (w, h) = (points_for(frame_width), points_for(frame_height));
+            let scale = Vec3::new((w - 1) as f32 / w as f32, (h - 1) as f32 / h as f32, 1.0);
+            (w, h, SUPERSAMPLE * first_row, Mat4::from_scale(scale))
+        } else {
+            (frame_width, frame_height, first_row, Mat4::IDENTITY)
+        };
+        // The camera's projection is the frame's (its aspect ratio); the widening, if any, after.
+        let clip_from_world: Mat4 =
+            widening * view.camera.clip_from_world(frame_width, frame_height);
         let lighting = &view.lighting;
         let water = &view.water;
         let sun_in_water = shading::sun_direction_in_water(lighting, water);
         FrameUniform {
             clip_from_world: clip_from_world.to_cols_array_2d(),
             world_from_clip: clip_from_world.inverse().to_cols_array_2d(),
-            previous_clip_from_world: view
-                .previous_camera
-                .clip_from_world(width, height)
-                .to_cols_array_2d(),
+            previous_clip_from_world: (widening
+                * view
+                    .previous_camera
+                    .clip_from_world(frame_width, frame_height))
+            .to_cols_array_2d(),
             eye: vec4(view.camera.eye, 1.0),
-            viewport: [width as f32, height as f32, 0.0, first_row as f32],
+            viewport: [
+                width as f32,
+                height as f32,
+                if supersampled {
+                    SUPERSAMPLE as f32
+                } else {
+                    1.0
+                },
+                first_row as f32,
+            ],
             sky_zenith: vec4(lighting.sky_zenith_linear, 0.0),
             sky_horizon: vec4(lighting.sky_horizon_linear, 0.0),
             sun_direction: vec4(
@@ -62,7 +93,12 @@ impl FrameUniform {
                 Some(direction) => vec4(direction, 1.0),
                 None => [0.0, 1.0, 0.0, 0.0],
             },
-            water: [water.n_above, water.n_below, water.mean_level_m, 0.0],
+            water: [
+                water.n_above,
+                water.n_below,
+                water.mean_level_m,
+                shading::glint_roughness2(lighting, water),
+            ],
             view_forward: vec4(view.camera.forward(), 0.0),
         }
     }

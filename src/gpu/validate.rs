@@ -45,6 +45,12 @@ impl Renderer {
         height: u32,
     ) -> Result<(), GpuError> {
         let max = self.context.device.limits().max_texture_dimension_2d;
+        // A supersampled frame draws 2 width + 1 by 2 height + 1 points (super::resolve).
+        let max = if self.supersample > 1 {
+            (max - 1) / super::resolve::SUPERSAMPLE
+        } else {
+            max
+        };
         if width == 0 || height == 0 || width > max || height > max {
             return Err(GpuError::BadSize { width, height, max });
         }

@@ -8,7 +8,8 @@
 //! interpolated normals) and the scene's triangles ([`bvh`]) before it. An object met before the
 //! water is shaded above water (only points that are not in the water count: the rasteriser
 //! splits objects at the exact surface and draws their under-water parts only through it). At the
-//! water, Schlick's F weights the sky seen along the reflected ray against the refracted ray,
+//! water, Schlick's F weights the sky seen along the reflected ray (plus the sun's glint,
+//! [`shading::water_reflection`]) against the refracted ray,
 //! traced through the BVH to the first point under water, shaded by `shade_under` with the true
 //! normal and the true path `|V - S|`; a refracted ray that meets nothing in the water shows the
 //! deep-water colour, as the rasteriser's stencil clear does. Every formula of the shading model
@@ -20,6 +21,11 @@
 //! for refracted pixels, 0 for sky and for water with nothing behind), the water matte and
 //! reflection, `flags` all 0: the reference has no virtual geometry to flag. Where nothing is
 //! seen each layer holds what the EXR channel map states ([`crate::draw::SKY_DEPTH_M`]).
+//!
+//! Anti-aliasing ([`TraceScene::grid`] above 1): every layer is still the centre ray's, and
+//! `grid` x `grid` stratified, jittered rays more a pixel ([`trace_frame`]) give the beauty and
+//! the water's reflection their mean (the box filter over the pixel) and the Cryptomatte its
+//! coverage, as the rasteriser's supersampled frames do (`crate::gpu`'s `resolve.rs`).
 //!
 //! Textures ([`texture`]): the GPU's array and mip chain, trilinear, at the level the GPU's
 //! derivatives would pick, estimated per hit as log2 of (footprint of the pixel at the hit,
@@ -81,15 +87,18 @@ pub struct TraceScene<'a> {
     pub membrane: &'a Membrane,
     pub view: FrameView,
     pub water_model: WaterModel,
+    /// Anti-aliasing: `grid` x `grid` stratified rays a pixel for the beauty and the coverage
+    /// ([`trace_frame`]); 1 traces the pixel centre alone.
+    pub grid: u32,
 }
 
 /// What a traced frame cost and counted.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct TraceStats {
-    /// One per pixel.
+    /// One per pixel, and `grid * grid` more a pixel where [`TraceScene::grid`] is above 1.
     pub primary_rays: u64,
     /// Sight rays that met the water and were refracted and traced on through the BVH (one per
-    /// such pixel): the rays `reference.refracted_rays_per_sec` counts.
+    /// such primary ray): the rays `reference.refracted_rays_per_sec` counts.
     pub refracted_rays: u64,
     /// Height-field evaluations of the exact surface's root finder, over the frame.
     pub surface_evaluations: u64,
@@ -111,7 +120,8 @@ pub struct PixelSample {
     pub depth_m: f32,
     /// Depth along the view axis of what the pixel shows (the virtual image through water).
     pub apparent_depth_m: f32,
-    /// Where the first surface is the water: (F * sky reflected, F).
+    /// Where the first surface is the water: (F * sky reflected + the sun's glint, F)
+    /// ([`shading::water_reflection`]).
     pub water_reflection: Option<Vec4>,
     /// The true point seen; NaN for sky and for water with nothing behind it (the frame holds 0).
     pub position: Vec3,
@@ -251,10 +261,7 @@ impl<'a> Tracer<'a> {
         let (lighting, water) = (&view.lighting, &view.water);
         let sight_point = at.position.as_vec3();
         let normal = at.normal.as_vec3();
-        let reflectance =
-            shading::schlick_reflectance(direction, normal, water.n_above, water.n_below);
-        let reflected = direction - 2.0 * direction.dot(normal) * normal;
-        let sky = shading::sky_radiance(reflected, lighting);
+        let (sky, reflectance) = shading::water_reflection(direction, normal, lighting, water);
         let refracted = crate::refraction::rays::refract(direction, normal, self.eta).direction;
         let ray = Ray::new(sight_point, refracted);
         let hit = self
@@ -295,11 +302,11 @@ impl<'a> Tracer<'a> {
             None => (water.scatter_color_linear, Vec3::NAN, 0, SKY_DEPTH_M),
         };
         PixelSample {
-            beauty: reflectance * sky + (1.0 - reflectance) * under,
+            beauty: sky + (1.0 - reflectance) * under,
             distance_m: surface_distance_m,
             depth_m: self.camera.view_depth(sight_point),
             apparent_depth_m,
-            water_reflection: Some(Vec4::from((reflectance * sky, reflectance))),
+            water_reflection: Some(Vec4::from((sky, reflectance))),
             position,
             object,
             refracted: true,
@@ -353,31 +360,125 @@ pub struct TracedFrame {
     pub stats: TraceStats,
 }
 
-/// Traces every pixel of a `width` x `height` frame (pixel centres at +0.5).
+/// The anti-aliased part of a pixel traced with several rays ([`TraceScene::grid`] above 1).
+struct Filtered {
+    /// The mean of the rays' beauty: a box filter over the pixel.
+    beauty: Vec3,
+    /// The mean of the rays' (F sky + glint, F), 0 for rays off the water.
+    water_reflection: Vec4,
+    coverage: [crate::draw::CoverageRank; crate::draw::COVERAGE_RANKS],
+    refracted: u64,
+    surface_evaluations: u64,
+}
+
+/// Seeds the jitter of pixel `(x, y)`'s rays: the same rays in every run, on every thread.
+const JITTER_SEED: u64 = 0x05ee_d0fa_11a5;
+
+/// The `grid` x `grid` stratified rays of pixel `(x, y)`: one in each cell of a `grid` x `grid`
+/// split of the pixel, at a place in its cell drawn from a generator seeded by the pixel
+/// ([`crate::seeded::SplitMix64`]): deterministic, and without the regular grid's aliasing on
+/// regular patterns (tiles).
+fn filtered_pixel(
+    tracer: &Tracer,
+    rays: &crate::camera::PixelRays,
+    (x, y): (u32, u32),
+    width: u32,
+    grid: u32,
+) -> Filtered {
+    let mut jitter = crate::seeded::SplitMix64::new(
+        JITTER_SEED ^ (u64::from(y) * u64::from(width) + u64::from(x)),
+    );
+    let mut beauty = Vec3::ZERO;
+    let mut water_reflection = Vec4::ZERO;
+    let mut samples = Vec::with_capacity((grid * grid) as usize);
+    let (mut refracted, mut surface_evaluations) = (0, 0);
+    for j in 0..grid {
+        for i in 0..grid {
+            let (u, v) = (jitter.unit_f32(), jitter.unit_f32());
+            let at = Vec2::new(
+                x as f32 + (i as f32 + u) / grid as f32,
+                y as f32 + (j as f32 + v) / grid as f32,
+            );
+            let sample = tracer.trace(rays.direction(at));
+            beauty += sample.beauty;
+            water_reflection += sample.water_reflection.unwrap_or(Vec4::ZERO);
+            refracted += u64::from(sample.refracted);
+            surface_evaluations += u64::from(sample.surface_evaluations);
+            samples.push((
+                crate::draw::CoverageSample {
+                    object: sample.object,
+                    water_reflectance: sample.water_reflection.map(|reflection| reflection.w),
+                },
+                1.0 / (grid * grid) as f32,
+            ));
+        }
+    }
+    let scale = 1.0 / (grid * grid) as f32;
+    Filtered {
+        beauty: beauty * scale,
+        water_reflection: water_reflection * scale,
+        coverage: crate::draw::coverage_ranks(&samples),
+        refracted,
+        surface_evaluations,
+    }
+}
+
+/// Traces every pixel of a `width` x `height` frame: the ray through the pixel centre (+0.5) for
+/// every layer, and where [`TraceScene::grid`] is above 1, `grid * grid` stratified rays more
+/// ([`filtered_pixel`]) whose mean is the beauty (and the water's reflection) and whose objects
+/// are the coverage: `Z`, `P`, IDs and the water matte stay the centre's, as the rasteriser's
+/// multisampled frames keep them.
 pub fn trace_frame(scene: &TraceScene, width: u32, height: u32) -> TracedFrame {
     let started = Instant::now();
     let tracer = Tracer::new(scene, height);
     let build_secs = started.elapsed().as_secs_f64();
     let rays = scene.view.camera.pixel_rays(width, height);
     let pixels = (width * height) as usize;
-    let mut samples: Vec<PixelSample> = Vec::with_capacity(pixels);
+    let grid = scene.grid.max(1);
+    let mut samples: Vec<(PixelSample, Option<Filtered>)> = Vec::with_capacity(pixels);
     let tile = (width * ROWS_PER_TILE) as usize;
     (0..pixels)
         .into_par_iter()
         .with_min_len(tile)
         .map(|at| {
             let (x, y) = (at as u32 % width, at as u32 / width);
-            tracer.trace(rays.direction(Vec2::new(x as f32 + 0.5, y as f32 + 0.5)))
+            let centre = tracer.trace(rays.direction(Vec2::new(x as f32 + 0.5, y as f32 + 0.5)));
+            let filtered = (grid > 1).then(|| filtered_pixel(&tracer, &rays, (x, y), width, grid));
+            (centre, filtered)
         })
         .collect_into_vec(&mut samples);
-    let counts = samples
-        .iter()
-        .fold((0u64, 0u64), |(refracted, evaluations), sample| {
+    let counts = samples.iter().fold(
+        (0u64, 0u64),
+        |(refracted, evaluations), (sample, filtered)| {
+            let (more_refracted, more_evaluations) = filtered
+                .as_ref()
+                .map_or((0, 0), |f| (f.refracted, f.surface_evaluations));
             (
-                refracted + u64::from(sample.refracted),
-                evaluations + sample.surface_evaluations as u64,
+                refracted + u64::from(sample.refracted) + more_refracted,
+                evaluations + sample.surface_evaluations as u64 + more_evaluations,
             )
-        });
+        },
+    );
+    let coverage = if grid > 1 {
+        samples
+            .iter()
+            .map(|(_, filtered)| filtered.as_ref().map(|f| f.coverage).unwrap_or_default())
+            .collect()
+    } else {
+        Vec::new()
+    };
+    let samples: Vec<PixelSample> = samples
+        .into_iter()
+        .map(|(mut sample, filtered)| {
+            if let Some(filtered) = filtered {
+                sample.beauty = filtered.beauty;
+                if sample.water_reflection.is_some() {
+                    sample.water_reflection = Some(filtered.water_reflection);
+                }
+            }
+            sample
+        })
+        .collect();
     let seen = |sample: &PixelSample, value: Vec3| {
         if sample.object == 0 {
             [0.0; 3]
@@ -407,9 +508,10 @@ pub fn trace_frame(scene: &TraceScene, width: u32, height: u32) -> TracedFrame {
             .collect(),
         // The tracer follows one frame's rays: no motion vectors (the GPU methods write them).
         motion_px: Vec::new(),
+        coverage,
     };
     let stats = TraceStats {
-        primary_rays: pixels as u64,
+        primary_rays: pixels as u64 * (1 + u64::from(grid > 1) * u64::from(grid * grid)),
         refracted_rays: counts.0,
         surface_evaluations: counts.1,
         triangles: tracer.bvh.triangle_count(),
@@ -451,6 +553,7 @@ mod tests {
             absorption_per_m: Vec3::new(0.4, 0.1, 0.05),
             scatter_color_linear: Vec3::new(0.0, 0.05, 0.08),
             mean_level_m: 0.0,
+            roughness: 0.0,
         }
     }
 
@@ -566,6 +669,7 @@ mod tests {
                     local_bounds: None,
                 },
                 membrane: &self.membrane,
+                grid: 1,
                 view: FrameView {
                     camera: self.camera,
                     previous_camera: self.camera,

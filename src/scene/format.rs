@@ -24,6 +24,17 @@ pub(crate) struct RawScene {
     pub character: Option<Vec<RawCharacter>>,
     pub vessel: Option<Vec<RawVessel>>,
     pub quality: Option<RawQuality>,
+    pub antialias: Option<RawAntialias>,
+}
+
+/// `[antialias]`: samples a pixel.
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawAntialias {
+    /// The rasteriser's points a pixel along each side: 1, or 2 supersampled.
+    pub supersample: Option<i64>,
+    /// The reference's stratified rays a pixel along each side (n x n).
+    pub reference_grid: Option<i64>,
 }
 
 /// `[[vessel]]`: a glass pane or cylinder objects are seen through (`crate::vessel`). Every key of
@@ -141,6 +152,8 @@ pub(crate) struct RawWater {
     pub n_below: Option<f64>,
     pub absorption_per_m: Option<[f64; 3]>,
     pub scatter_color: Option<[f64; 3]>,
+    /// Rms slope of the waves finer than the membrane (the sun glint's roughness).
+    pub roughness: Option<f64>,
     pub wave: Option<Vec<RawWave>>,
     pub ripples: Option<RawRipples>,
 }

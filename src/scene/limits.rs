@@ -126,6 +126,7 @@ pub const KEY_RANGES: &[KeyRange] = &[
         "[0.45, 0.07, 0.03]",
     ),
     srgb("water.scatter_color[]", "[0.05, 0.30, 0.40]"),
+    closed("water.roughness", 0.0, 1.0, "", "0.055"),
     closed("water.wave[].amplitude_m", 0.0, 10.0, "m", "0.02"),
     closed("water.wave[].wavelength_m", 0.01, 10000.0, "m", "2.0"),
     closed(
@@ -255,6 +256,8 @@ pub const KEY_RANGES: &[KeyRange] = &[
     above("vessel[].outer_radius_m", 0.0, W, "m", "0.04"),
     above("vessel[].height_m", 0.0, 2.0 * W, "m", "0.12"),
     above("quality.max_error_px", 0.0, 1000.0, "px", "0.5"),
+    whole("antialias.supersample", 1.0, 2.0, "2"),
+    whole("antialias.reference_grid", 1.0, 16.0, "4"),
 ];
 
 /// The key path as [`KeyRange::key`] writes it: indices as `[]`, texture slots as `texture`.

@@ -56,6 +56,8 @@ pub struct Scene {
     lighting: Lighting,
     /// `[quality]`: the accuracy the scene asks for (none: render as the file says).
     pub quality: QualitySpec,
+    /// `[antialias]`: samples a pixel, of the rasteriser and of the reference.
+    pub antialias: AntialiasSpec,
     /// What a frame of the scene file needs (characters, textures and the image size are added
     /// by the frame stage), checked against the limits at validation.
     pub resources: resources::Estimate,
@@ -157,6 +159,17 @@ impl CameraSpec {
             ),
         ))
     }
+}
+
+/// `[antialias]`, validated.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct AntialiasSpec {
+    /// The rasteriser's points a pixel along each side: 1, or 2 supersampled
+    /// (`crate::gpu::Renderer::set_supersample`).
+    pub supersample: u32,
+    /// The reference's stratified rays a pixel along each side: `reference_grid` squared of them
+    /// filter the beauty (`crate::reference::trace_frame`); 1 traces the pixel centre alone.
+    pub reference_grid: u32,
 }
 
 /// `[quality]`, validated.
@@ -284,6 +297,8 @@ pub struct WaterSpec {
     /// Beer-Lambert absorption per RGB channel, 1/m.
     pub absorption_per_m: [f64; 3],
     pub scatter_color_linear: [f64; 3],
+    /// Rms slope of the waves finer than the membrane: the sun glint's Beckmann roughness.
+    pub roughness: f64,
     pub waves: Vec<WaveSpec>,
     pub ripples: RippleSpec,
 }
@@ -429,6 +444,7 @@ impl Scene {
             absorption_per_m: to_vec3(w.absorption_per_m),
             scatter_color_linear: to_vec3(w.scatter_color_linear),
             mean_level_m: w.level_m as f32,
+            roughness: w.roughness as f32,
         }
     }
 

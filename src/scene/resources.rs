@@ -40,22 +40,23 @@ const BASE_BYTES: u64 = 320 << 20;
 const BYTES_PER_CELL: u64 = 800;
 const BYTES_PER_VERTEX: u64 = 1000;
 const BYTES_PER_TRIANGLE: u64 = 600;
-/// A pixel of a frame held whole (the ray-traced methods: the traced layers, the EXR's samples).
-const BYTES_PER_PIXEL: u64 = 260;
+/// A pixel of a frame held whole (the ray-traced methods: the traced layers with their coverage,
+/// the EXR's samples).
+const BYTES_PER_PIXEL: u64 = 300;
 /// A pixel of a frame rendered in strips, beyond its strip: the PNG's 4 bytes when asked for, with
 /// a margin.
 const BYTES_PER_STREAMED_PIXEL: u64 = 8;
-/// Pixels of the largest strip: the renderer's readback budget (256 MiB) over the 68 bytes a
-/// pixel takes there ([`crate::gpu::Renderer::strip_rows`]).
-const MAX_STRIP_PIXELS: u64 = (256 << 20) / 68;
-/// A pixel of a strip: its targets and readback on the device (about 145 bytes, in host memory
-/// on Mesa's CPU drivers), the strips in flight to the writer (64 bytes each, up to four) and
-/// their EXR samples and chunks.
-const BYTES_PER_STRIP_PIXEL: u64 = 600;
+/// Pixels of the largest strip: the renderer's readback budget (256 MiB) over the 100 bytes a
+/// supersampled pixel takes there (68, and 32 of coverage: [`crate::gpu::Renderer::strip_rows`]).
+const MAX_STRIP_PIXELS: u64 = (256 << 20) / 100;
+/// A pixel of a strip: its targets and readback on the device (about 210 bytes, in host memory
+/// on Mesa's CPU drivers), a supersampled frame's points (four a pixel, 76 bytes each), the strips
+/// in flight to the writer (104 bytes each, up to four) and their EXR samples and chunks.
+const BYTES_PER_STRIP_PIXEL: u64 = 1100;
 const BYTES_PER_RIPPLE_NODE: u64 = 64;
-/// A pixel of a frame kept whole ([`crate::draw::RenderedFrame`]: 72 bytes of layers) with a
+/// A pixel of a frame kept whole ([`crate::draw::RenderedFrame`]: 104 bytes of layers) with a
 /// margin for what is derived from it (a comparison's maps, the preview's encoded images).
-const BYTES_PER_HELD_PIXEL: u64 = 100;
+const BYTES_PER_HELD_PIXEL: u64 = 140;
 
 /// `SNELL_MAX_MEMORY` parsed, or the default; an unreadable value is an error naming it.
 pub fn memory_limit() -> Result<u64, String> {

@@ -15,8 +15,9 @@ use super::limits::{MAX_FRAME_NUMBER, MAX_TIMELINE_FRAMES};
 use super::primitives::DEFAULT_MAX_EDGE_M;
 use super::textures::{srgb_to_linear3, ImageSpec, LaneSpec, TextureSpec, TilesSpec};
 use super::{
-    AnimationChoice, AspectRule, CameraSpec, CharacterSpec, GltfCameraSpec, ObjectSpec, PathKey,
-    Playback, QualitySpec, RippleSpec, Scene, SceneError, ShapeSpec, WaterSpec, WaveSpec,
+    AnimationChoice, AntialiasSpec, AspectRule, CameraSpec, CharacterSpec, GltfCameraSpec,
+    ObjectSpec, PathKey, Playback, QualitySpec, RippleSpec, Scene, SceneError, ShapeSpec,
+    WaterSpec, WaveSpec,
 };
 use crate::draw::Lighting;
 use crate::timeline::{CameraKey, Timeline};
@@ -43,6 +44,9 @@ const DEFAULT_N_BELOW: f64 = 1.333;
 /// Clear pool water: red is absorbed within metres, blue travels far (Pope & Fry 1997, roughly).
 const DEFAULT_ABSORPTION_PER_M: [f64; 3] = [0.45, 0.07, 0.03];
 const DEFAULT_SCATTER_COLOR: [f64; 3] = [0.05, 0.30, 0.40];
+/// Rms slope of the waves finer than the membrane: Cox and Munk's slope variance of a calm sea
+/// (0.003, their fit 0.003 + 0.00512 U at wind speed U = 0), whose square root is 0.055.
+const DEFAULT_WATER_ROUGHNESS: f64 = 0.055;
 const DEFAULT_ZENITH_COLOR: [f64; 3] = [0.30, 0.50, 0.85];
 const DEFAULT_HORIZON_COLOR: [f64; 3] = [0.78, 0.86, 0.95];
 const DEFAULT_AMBIENT_COLOR: [f64; 3] = [0.60, 0.70, 0.85];
@@ -96,6 +100,7 @@ pub(crate) fn validate(raw: RawScene, map: &SourceMap<'_>) -> Result<Scene> {
     let camera = camera(raw.camera.as_ref(), &timeline, &water, map)?;
     let lighting = lighting(&raw, map)?;
     let quality = quality(&raw, map)?;
+    let antialias = antialias(&raw);
     let objects = match &raw.object {
         Some(objects) => objects
             .iter()
@@ -141,7 +146,30 @@ pub(crate) fn validate(raw: RawScene, map: &SourceMap<'_>) -> Result<Scene> {
         vessels: Arc::from(vessels),
         lighting,
         quality,
+        antialias,
     })
+}
+
+/// The rasteriser's sampling by default: 2, supersampled (README "Anti-aliasing" has what it
+/// costs).
+const DEFAULT_SUPERSAMPLE: u32 = 2;
+/// The reference's stratified rays a pixel by default: 4 x 4.
+const DEFAULT_REFERENCE_GRID: u32 = 4;
+
+/// `[antialias]`: both keys are whole numbers in their stated ranges (1 or 2, and 1 to 16),
+/// checked where they stand (`super::limits`), so nothing here can be wrong.
+fn antialias(raw: &RawScene) -> AntialiasSpec {
+    let raw = raw.antialias.as_ref();
+    let supersample = raw
+        .and_then(|a| a.supersample)
+        .map_or(DEFAULT_SUPERSAMPLE, |s| s as u32);
+    let reference_grid = raw
+        .and_then(|a| a.reference_grid)
+        .map_or(DEFAULT_REFERENCE_GRID, |n| n as u32);
+    AntialiasSpec {
+        supersample,
+        reference_grid,
+    }
 }
 
 /// Budgets past this are surely a typo: an error of 1,000 pixels is a different picture.

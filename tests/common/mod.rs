@@ -54,3 +54,19 @@ pub fn csv_with_header(path: &Path, header: &str) -> String {
     assert_eq!(csv.lines().next(), Some(header), "{}", path.display());
     csv
 }
+
+/// A scene written as `text` to `<target tmp>/<folder>/<name>.toml`, loaded, with `method`.
+pub fn scene_job(
+    folder: &str,
+    name: &str,
+    text: &str,
+    method: snell::frame::Method,
+) -> snell::frame::RenderJob {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(folder);
+    std::fs::create_dir_all(&dir).expect("the test's folder can be made");
+    let path = dir.join(format!("{name}.toml"));
+    std::fs::write(&path, text).expect("the scene can be written");
+    let mut job = snell::frame::RenderJob::prepare(&path).unwrap_or_else(|error| panic!("{error}"));
+    job.method = method;
+    job
+}

@@ -304,13 +304,16 @@ fn frame_of(path: &Path, image: &AnyImage) -> Result<(RenderedFrame, ReadMeta), 
         water_matte,
         water_reflection,
         motion_px,
+        // The file keeps the ranks, not the samples they were counted from.
+        coverage: Vec::new(),
     };
     Ok((frame, meta))
 }
 
 /// Schlick's F per water pixel: the Cryptomatte coverage of the water's ID (0 elsewhere). Where
 /// nothing is behind the water that coverage is 1, not F: the file keeps F only where an object
-/// shares the pixel. `None` for a file without the Cryptomatte (written from a frame without an
+/// shares the pixel; and in an anti-aliased frame it is the water's share counted over the
+/// pixel's samples, which is F only where every sample sees the water. `None` for a file without the Cryptomatte (written from a frame without an
 /// object layer).
 fn water_reflectance(image: &AnyImage, meta: &ReadMeta, water_matte: &[f32]) -> Option<Vec<f32>> {
     let water_id =

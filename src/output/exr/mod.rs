@@ -392,7 +392,24 @@ fn frame_channels<'a>(
         }
     }
     if !frame.object.is_empty() && has(Layer::CryptoObject) {
+        let from_samples = move |i: usize| {
+            let mut ranks = [(0.0, 0.0); CRYPTO_RANKS];
+            for (rank, share) in ranks.iter_mut().zip(&frame.coverage[i]) {
+                let id = match share.key {
+                    crate::draw::COVERAGE_WATER => Some(water_id),
+                    NO_OBJECT => None,
+                    object => crypto_ids.get(object as usize - 1).copied(),
+                };
+                if let Some(id) = id {
+                    *rank = (id, share.coverage);
+                }
+            }
+            ranks
+        };
         let ranks = move |i: usize| {
+            if !frame.coverage.is_empty() {
+                return from_samples(i);
+            }
             let object = frame.object[i];
             let object = (object != NO_OBJECT)
                 .then(|| crypto_ids.get(object as usize - 1).copied())

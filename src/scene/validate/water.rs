@@ -37,6 +37,7 @@ pub(super) fn water(
     for (i, &a) in absorption_per_m.iter().enumerate() {
         in_stated_range(a, &path.key("absorption_per_m").index(i), map)?;
     }
+    let roughness = raw.roughness.unwrap_or(DEFAULT_WATER_ROUGHNESS);
     let scatter = color(
         raw.scatter_color,
         DEFAULT_SCATTER_COLOR,
@@ -88,6 +89,7 @@ pub(super) fn water(
         n_below,
         absorption_per_m,
         scatter_color_linear: srgb_to_linear3(scatter),
+        roughness,
         waves,
         ripples: ripples(
             raw.ripples.as_ref(),
